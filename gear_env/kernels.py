@@ -1,0 +1,672 @@
+"""numba kernels of the gear-bearing model: geometry, backlash, mesh force, Newmark-beta steps.
+
+Plain arrays and floats in, arrays out; no Python objects. Everything is dimensionless and in
+natural time s = omega_n t (MODEL.md sec. 3b). The state is ``x = [X_p, Y_p, X_g, Y_g, U,
+X_p', Y_p', X_g', Y_g', U']`` (b0 units); the mesh phase ``phi`` advances at ``omega``.
+
+Time stepping
+-------------
+Newmark-beta, average acceleration (gamma = 1/2, beta = 1/4), with the step uniform in *mesh
+phase*: a mesh period is always ``n`` steps of ``dphi = 2 pi / n``. Inside a control interval
+omega varies linearly in time from ``w0`` to ``w1``; then omega^2 is linear in phase, so omega is
+known exactly at every step boundary and the step length is ``h = 2 dphi / (w_a + w_b)``.
+Poincare samples (phase = 2 pi k) fall exactly on step boundaries, also while omega ramps.
+
+Each step solves the nonlinear equilibrium at the end of the step for the new acceleration with
+Newton's method. The Newton matrix is diagonal (mass, damping, bearing stiffness) plus one rank-one
+term (the mesh force acts along g and is felt along w = M^-1 g), so it is solved in O(n) with the
+Sherman-Morrison formula. The Jacobian is the exact one for the active contact region (semismooth
+Newton on the piecewise-linear backlash); only the tiny dependence of the force direction on psi
+is frozen within a step.
+
+Contact changes inside a step
+-----------------------------
+The dead-zone force f(Delta) is continuous (and so is the viscous mesh term, A6), so the
+acceleration stays continuous and only its derivative jumps at a contact change. A step that
+contains one therefore keeps an O(h^3) local error, and the global error stays O(h^2) with a
+fixed step (shown by the convergence tests on impacting motion). The contact change is not
+located; the semismooth Newton iteration finds the end-of-step region. If Newton does not converge
+(it can cycle between two regions when the end of the step sits on a kink) the step is split in
+halves, recursively up to 2^6 sub-steps, before a failure is reported.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .params import (
+    C_A0,
+    C_ALPHA0,
+    C_BC,
+    C_COS_A0,
+    C_E1,
+    C_EPS_G,
+    C_EPS_P,
+    C_FS,
+    C_GG,
+    C_GP,
+    C_KAPPA,
+    C_PHI_E,
+    C_PHI_K,
+    C_R,
+    C_SIG_G,
+    C_SIG_P,
+    C_SIN_A0,
+    C_XI_BG,
+    C_XI_BP,
+    C_XI_M,
+)
+
+kernel = njit(cache=True, error_model="numpy")
+"""Decorator of every kernel: compiled once, cached on disk, no Python exceptions inside."""
+
+NDOF = 5
+NSTATE = 10
+GAMMA = 0.5
+BETA = 0.25
+TWO_PI = 2.0 * math.pi
+
+# status codes returned by the integrators
+OK = 0
+DIVERGED = 1  # non-finite or exploding state
+NEWTON_FAILED = 2  # Newton failed even after step splitting
+
+# channels recorded per step by ``integrate_record`` (columns after the 10 states)
+REC_S = 10
+REC_PHI = 11
+REC_OMEGA = 12
+REC_DELTA = 13
+REC_BD = 14
+REC_PSI = 15
+REC_FORCE = 16
+REC_REGION = 17
+N_REC = 18
+
+# per-interval statistics written by ``integrate_stats`` (index into the stats vector)
+ST_TIME = 0  # elapsed natural time
+ST_SEP_TIME = 1  # time with the teeth apart (|Delta| < B_d)
+ST_BACK_TIME = 2  # time in back-side contact
+ST_BACK_IMPACTS = 3  # entries into back-side contact
+ST_DRIVE_IMPACTS = 4  # re-entries into drive-side contact after a separation
+ST_F_SUM = 5  # integral of the mesh force
+ST_F_SQ = 6  # integral of the mesh force squared
+ST_F_MAX = 7
+ST_F_MIN = 8
+ST_TR_SQ = 9  # integral of (X_p^2 + Y_p^2 + X_g^2 + Y_g^2)/2 (translational response)
+ST_TR_MAX = 10  # max over time of the radial bearing deflection
+ST_U_MAX = 11
+ST_U_MIN = 12
+ST_D_MAX = 13
+ST_D_MIN = 14
+ST_BD_MAX = 15
+ST_BD_MIN = 16
+ST_PSI_MAX = 17
+ST_PSI_MIN = 18
+ST_STEPS = 19  # steps taken
+ST_SPLITS = 20  # steps that had to be split
+N_STATS = 21
+
+# Poincare sample columns written by ``integrate_stats`` per mesh period
+PC_DELTA = 10
+PC_BD = 11
+PC_PSI = 12
+PC_FORCE = 13
+N_PC = 14
+
+DIVERGENCE_LIMIT = 1e6  # |state| beyond this (b0 units) counts as divergence
+
+
+@kernel
+def backlash(delta, bd):
+    """Dead-zone function f(Delta; B_d) (eq. 9) and its region (+1 drive, 0 apart, -1 back)."""
+    if delta >= bd:
+        return delta - bd, 1
+    if delta <= -bd:
+        return delta + bd, -1
+    return 0.0, 0
+
+
+@kernel
+def geometry_s(q0, q1, q2, q3, c, dynamic, out):
+    """Mesh geometry at positions (X_p, Y_p, X_g, Y_g) (eqs. 5-8), without trigonometric calls.
+
+    Writes ``out[0:14] = [psi, B_d, dB/dq (5), dpsi/dq (5), sin psi, cos psi]``. For the constant
+    model psi = alpha0 and B_d = B_c (A8), and the derivative entries are left untouched (the
+    caller keeps them zero); for the dynamic model eqs. (5)-(8) at every call (A9). With
+    ca = R/A_d, sa = sqrt(1 - ca^2) (alpha_d), cz = d1/A_d and z = -d2/A_d (the arcsin term):
+    sin psi = sa cz + ca z and cos psi = ca cz - sa z.
+    """
+    if dynamic == 0:
+        out[0] = c[C_ALPHA0]
+        out[1] = c[C_BC]
+        out[12] = c[C_SIN_A0]
+        out[13] = c[C_COS_A0]
+        return
+    A0 = c[C_A0]
+    R = c[C_R]
+    d1 = A0 - q0 + q2
+    d2 = q1 - q3
+    ad = math.sqrt(d1 * d1 + d2 * d2)
+    ca = R / ad
+    s2 = 1.0 - ca * ca
+    if s2 < 1e-30:
+        s2 = 1e-30
+    sa = math.sqrt(s2)
+    ta = sa / ca
+    cz = d1 / ad
+    z = -d2 / ad
+    sp = sa * cz + ca * z
+    cp = ca * cz - sa * z
+    out[12] = sp
+    out[13] = cp
+    out[0] = math.atan2(sp, cp)
+    out[1] = c[C_BC] + (ad - A0) * ta
+    # dalpha/dA_d = R / (A_d sqrt(A_d^2 - R^2)) = ca / (A_d sa)
+    dalpha_dad = ca / (ad * sa)
+    db_dad = ta + (ad - A0) * (1.0 + ta * ta) * dalpha_dad
+    dad0 = -d1 / ad  # dA_d/dX_p (= -dA_d/dX_g)
+    dad1 = d2 / ad  # dA_d/dY_p (= -dA_d/dY_g)
+    out[2] = db_dad * dad0
+    out[3] = db_dad * dad1
+    out[4] = -out[2]
+    out[5] = -out[3]
+    out[6] = 0.0
+    # dpsi/dq = dalpha/dA dA/dq + (dz/dq) / cz,  dz = -dd2/A_d + d2 dA_d / A_d^2
+    ad2 = ad * ad
+    out[7] = dalpha_dad * dad0 + (d2 * dad0 / ad2) / cz
+    out[8] = dalpha_dad * dad1 + (-1.0 / ad + d2 * dad1 / ad2) / cz
+    out[9] = -out[7]
+    out[10] = -out[8]
+    out[11] = 0.0
+
+
+GEO_SIZE = 14
+
+
+@kernel
+def geometry(q, c, dynamic, out):
+    """Array form of :func:`geometry_s`: q holds at least (X_p, Y_p, X_g, Y_g); out has 14 zeros."""
+    geometry_s(q[0], q[1], q[2], q[3], c, dynamic, out)
+
+
+@kernel
+def mesh_state_s(q0, q1, q2, q3, q4, v0, v1, v2, v3, v4, ce, se, omega, c, dynamic, geo):
+    """Delta, Delta', B_d, f(Delta), region at one instant (scalar form, no allocation).
+
+    ``ce, se`` = cos, sin of (phi + phi_e); ``geo`` (>= 14, zero-initialised) receives the
+    geometry (psi, B_d, derivatives, sin psi, cos psi). Returns (delta, ddelta, bd, f, region).
+    """
+    geometry_s(q0, q1, q2, q3, c, dynamic, geo)
+    bd = geo[1]
+    sp = geo[12]
+    cp = geo[13]
+    e1 = c[C_E1]
+    delta = (q0 - q2) * sp - (q1 - q3) * cp + q4 - e1 * ce
+    ddelta = (v0 - v2) * sp - (v1 - v3) * cp + v4 + e1 * omega * se
+    if dynamic != 0:
+        dm = (q0 - q2) * cp + (q1 - q3) * sp  # dDelta/dpsi
+        psid = geo[7] * v0 + geo[8] * v1 + geo[9] * v2 + geo[10] * v3
+        ddelta += psid * dm
+    f, region = backlash(delta, bd)
+    return delta, ddelta, bd, f, region
+
+
+@kernel
+def mesh_state(q, v, ce, se, omega, c, dynamic, geo):
+    """Array form of :func:`mesh_state_s` (q, v of length 5)."""
+    return mesh_state_s(q[0], q[1], q[2], q[3], q[4], v[0], v[1], v[2], v[3], v[4], ce, se, omega, c, dynamic, geo)
+
+
+@kernel
+def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
+    """Accelerations a = q'' (natural time) at one instant; returns the mesh force Fhat.
+
+    ``kk`` = 1 + kappa cos(phi + phi_k) is the stiffness factor.
+    """
+    delta, ddelta, bd, f, region = mesh_state(q, v, ce, se, omega, c, dynamic, geo)
+    F = 2.0 * c[C_XI_M] * ddelta + kk * f
+    sp = geo[12]
+    cp = geo[13]
+    ep = c[C_EPS_P]
+    eg = c[C_EPS_G]
+    sgp = c[C_SIG_P]
+    sgg = c[C_SIG_G]
+    a[0] = -(2.0 * c[C_XI_BP] * sgp * v[0] + sgp * sgp * q[0] + F * sp / ep)
+    a[1] = -(2.0 * c[C_XI_BP] * sgp * v[1] + sgp * sgp * q[1] - F * cp / ep) - c[C_GP] / ep
+    a[2] = -(2.0 * c[C_XI_BG] * sgg * v[2] + sgg * sgg * q[2] - F * sp / eg)
+    a[3] = -(2.0 * c[C_XI_BG] * sgg * v[3] + sgg * sgg * q[3] + F * cp / eg) - c[C_GG] / eg
+    a[4] = c[C_FS] - F
+    return F
+
+
+@kernel
+def excitation(phi, c):
+    """(cos(phi + phi_e), sin(phi + phi_e), 1 + kappa cos(phi + phi_k)) at mesh phase phi."""
+    return math.cos(phi + c[C_PHI_E]), math.sin(phi + c[C_PHI_E]), 1.0 + c[C_KAPPA] * math.cos(phi + c[C_PHI_K])
+
+
+@kernel
+def _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, geo, max_iter, tol):
+    """Attempt one Newmark step of length h ending where the excitation is (ce, se, kk), omega w_b.
+
+    On success overwrites x (state) and a (acceleration) and returns (True, F, region, delta,
+    bd); on failure leaves them untouched and returns False first. The geometry at the end of the
+    step (psi = geo[0], sin psi = geo[12], cos psi = geo[13]) is left in ``geo``.
+    """
+    ep = c[C_EPS_P]
+    eg = c[C_EPS_G]
+    sgp = c[C_SIG_P]
+    sgg = c[C_SIG_G]
+    c0 = 2.0 * c[C_XI_BP] * sgp
+    c2 = 2.0 * c[C_XI_BG] * sgg
+    k0 = sgp * sgp
+    k2 = sgg * sgg
+    bh2 = BETA * h * h
+    gh = GAMMA * h
+    hh = h * h * (0.5 - BETA)
+    h1 = h * (1.0 - GAMMA)
+    # predictors
+    qp0 = x[0] + h * x[5] + hh * a[0]
+    qp1 = x[1] + h * x[6] + hh * a[1]
+    qp2 = x[2] + h * x[7] + hh * a[2]
+    qp3 = x[3] + h * x[8] + hh * a[3]
+    qp4 = x[4] + h * x[9] + hh * a[4]
+    vp0 = x[5] + h1 * a[0]
+    vp1 = x[6] + h1 * a[1]
+    vp2 = x[7] + h1 * a[2]
+    vp3 = x[8] + h1 * a[3]
+    vp4 = x[9] + h1 * a[4]
+    a0 = a[0]
+    a1 = a[1]
+    a2 = a[2]
+    a3 = a[3]
+    a4 = a[4]
+    dd0 = 1.0 + gh * c0 + bh2 * k0
+    dd2 = 1.0 + gh * c2 + bh2 * k2
+    ext1 = -c[C_GP] / ep
+    ext3 = -c[C_GG] / eg
+    xim2 = 2.0 * c[C_XI_M]
+    cd = gh * xim2
+    q0 = qp0 + bh2 * a0
+    q1 = qp1 + bh2 * a1
+    q2 = qp2 + bh2 * a2
+    q3 = qp3 + bh2 * a3
+    q4 = qp4 + bh2 * a4
+    v0 = vp0 + gh * a0
+    v1 = vp1 + gh * a1
+    v2 = vp2 + gh * a2
+    v3 = vp3 + gh * a3
+    v4 = vp4 + gh * a4
+    delta, ddelta, bd, f, region = mesh_state_s(q0, q1, q2, q3, q4, v0, v1, v2, v3, v4, ce, se, w_b, c, dynamic, geo)
+    F = xim2 * ddelta + kk * f
+    for it in range(max_iter):
+        sp = geo[12]
+        cp = geo[13]
+        w0 = sp / ep
+        w1 = -cp / ep
+        w2 = -sp / eg
+        w3 = cp / eg
+        # residual r = a + C v + K q + w F - ext
+        r0 = a0 + c0 * v0 + k0 * q0 + w0 * F
+        r1 = a1 + c0 * v1 + k0 * q1 + w1 * F - ext1
+        r2 = a2 + c2 * v2 + k2 * q2 + w2 * F
+        r3 = a3 + c2 * v3 + k2 * q3 + w3 * F - ext3
+        r4 = a4 + F - c[C_FS]
+        # u = dF/da = bh2 kk df/dq + gh 2 xi_m g, g = dDelta/dq (force direction frozen)
+        cs = bh2 * kk if region != 0 else 0.0
+        rr = cs * float(region)
+        cg = cd + cs
+        u0 = cg * sp - rr * geo[2]
+        u1 = -cg * cp - rr * geo[3]
+        u2 = -cg * sp - rr * geo[4]
+        u3 = cg * cp - rr * geo[5]
+        u4 = cg
+        # Sherman-Morrison: (D + w u^T) d = -r, D = diag(dd0, dd0, dd2, dd2, 1)
+        y0 = -r0 / dd0
+        y1 = -r1 / dd0
+        y2 = -r2 / dd2
+        y3 = -r3 / dd2
+        y4 = -r4
+        z0 = w0 / dd0
+        z1 = w1 / dd0
+        z2 = w2 / dd2
+        z3 = w3 / dd2
+        fac = (u0 * y0 + u1 * y1 + u2 * y2 + u3 * y3 + u4 * y4) / (1.0 + u0 * z0 + u1 * z1 + u2 * z2 + u3 * z3 + u4)
+        e0 = y0 - fac * z0
+        e1 = y1 - fac * z1
+        e2 = y2 - fac * z2
+        e3 = y3 - fac * z3
+        e4 = y4 - fac
+        a0 += e0
+        a1 += e1
+        a2 += e2
+        a3 += e3
+        a4 += e4
+        dmax = max(abs(e0), abs(e1), abs(e2), abs(e3), abs(e4))
+        if not math.isfinite(dmax):
+            return False, F, region, delta, bd
+        q0 = qp0 + bh2 * a0
+        q1 = qp1 + bh2 * a1
+        q2 = qp2 + bh2 * a2
+        q3 = qp3 + bh2 * a3
+        q4 = qp4 + bh2 * a4
+        v0 = vp0 + gh * a0
+        v1 = vp1 + gh * a1
+        v2 = vp2 + gh * a2
+        v3 = vp3 + gh * a3
+        v4 = vp4 + gh * a4
+        old_region = region
+        delta, ddelta, bd, f, region = mesh_state_s(q0, q1, q2, q3, q4, v0, v1, v2, v3, v4, ce, se, w_b, c, dynamic, geo)
+        F = xim2 * ddelta + kk * f
+        # The backlash force is piecewise linear: for the constant model the update is exact
+        # once the region it assumed is the region it lands in. The dynamic model's geometry is
+        # mildly nonlinear and also needs a small update.
+        if region == old_region:
+            amax = max(abs(a0), abs(a1), abs(a2), abs(a3), abs(a4))
+            if dynamic == 0 or dmax <= tol * (1.0 + amax):
+                x[0] = q0
+                x[1] = q1
+                x[2] = q2
+                x[3] = q3
+                x[4] = q4
+                x[5] = v0
+                x[6] = v1
+                x[7] = v2
+                x[8] = v3
+                x[9] = v4
+                a[0] = a0
+                a[1] = a1
+                a[2] = a2
+                a[3] = a3
+                a[4] = a4
+                return True, F, region, delta, bd
+    return False, F, region, delta, bd
+
+
+MAX_SPLIT_LEVEL = 6
+WORK_SIZE = 80
+
+
+@kernel
+def newmark_step(x, a, phi_a, dphi, ce, se, kk, w_a, w_b, c, dynamic, work, max_iter, tol):
+    """Advance (x, a) by a phase increment dphi while omega goes linearly in time w_a -> w_b.
+
+    ``ce, se, kk`` is the excitation at the end phase phi_a + dphi (see :func:`excitation`).
+    Returns (status, F, region, delta, bd, split) with the mesh quantities at the end of the
+    step; ``split`` is 1 when the step had to be divided for Newton to converge. ``work`` (length
+    WORK_SIZE, zero-initialised) holds the geometry at the end of the step (psi = work[0]).
+    """
+    h = 2.0 * dphi / (w_a + w_b)
+    ok, F, region, delta, bd = _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, work, max_iter, tol)
+    if ok:
+        return OK, F, region, delta, bd, 0
+    # split into 2^level sub-steps; omega^2 is linear in phase inside the step
+    xs = work[60:70]
+    as_ = work[70:75]
+    for level in range(1, MAX_SPLIT_LEVEL + 1):
+        nsub = 1 << level
+        for i in range(NSTATE):
+            xs[i] = x[i]
+        for i in range(NDOF):
+            as_[i] = a[i]
+        good = True
+        sub = dphi / nsub
+        wprev = w_a
+        for k in range(nsub):
+            frac = (k + 1.0) / nsub
+            wk = math.sqrt(w_a * w_a + (w_b * w_b - w_a * w_a) * frac)
+            hk = 2.0 * sub / (wprev + wk)
+            cek, sek, kkk = excitation(phi_a + sub * (k + 1.0), c)
+            ok, F, region, delta, bd = _newmark_try(xs, as_, cek, sek, kkk, wk, hk, c, dynamic, work, max_iter, tol)
+            if not ok:
+                good = False
+                break
+            wprev = wk
+        if good:
+            for i in range(NSTATE):
+                x[i] = xs[i]
+            for i in range(NDOF):
+                a[i] = as_[i]
+            return OK, F, region, delta, bd, 1
+    return NEWTON_FAILED, F, region, delta, bd, 1
+
+
+@kernel
+def _diverged(x):
+    for i in range(NSTATE):
+        xi = x[i]
+        if not math.isfinite(xi) or abs(xi) > DIVERGENCE_LIMIT:
+            return True
+    return False
+
+
+@kernel
+def _excitation_table(phi0, n_steps, c):
+    """Excitation (cos, sin of phi + phi_e; stiffness factor) at the n_steps phases of a period."""
+    tab = np.empty((n_steps, 3))
+    dphi = TWO_PI / n_steps
+    for k in range(n_steps):
+        ce, se, kk = excitation(phi0 + dphi * k, c)
+        tab[k, 0] = ce
+        tab[k, 1] = se
+        tab[k, 2] = kk
+    return tab
+
+
+@kernel
+def start_step(x, a, phi0, w0, c, dynamic, work):
+    """Consistent initial acceleration and mesh quantities at the start of an interval.
+
+    Fills ``a``; returns (F, region, delta, bd) at the start; psi is left in work[0].
+    """
+    geo = work
+    ce, se, kk = excitation(phi0, c)
+    F = accel(x[0:5], x[5:10], ce, se, w0, kk, c, dynamic, geo, a)
+    delta, ddelta, bd, f, region = mesh_state(x[0:5], x[5:10], ce, se, w0, c, dynamic, geo)
+    return F, region, delta, bd
+
+
+@kernel
+def integrate_record(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, out, max_iter, tol):
+    """Integrate n_periods mesh periods, recording every step.
+
+    ``x`` (10) and ``a`` (5) are updated in place; omega goes linearly in time from w0 to w1 over
+    the whole interval. ``out`` has shape (n_periods*n_steps + 1, N_REC): row 0 is the start.
+    Returns (status, rows_written, natural time elapsed).
+    """
+    work = np.zeros(WORK_SIZE)
+    tab = _excitation_table(phi0, n_steps, c)
+    total = n_periods * n_steps
+    dphi = TWO_PI / n_steps
+    ww = w1 * w1 - w0 * w0
+    F0, region, delta, bd = start_step(x, a, phi0, w0, c, dynamic, work)
+    for i in range(NSTATE):
+        out[0, i] = x[i]
+    out[0, REC_S] = 0.0
+    out[0, REC_PHI] = phi0
+    out[0, REC_OMEGA] = w0
+    out[0, REC_DELTA] = delta
+    out[0, REC_BD] = bd
+    out[0, REC_PSI] = work[0]
+    out[0, REC_FORCE] = F0
+    out[0, REC_REGION] = region
+    s = 0.0
+    wa = w0
+    for k in range(total):
+        wb = math.sqrt(w0 * w0 + ww * (k + 1.0) / total)
+        j = (k + 1) % n_steps
+        st, F, region, delta, bd, split = newmark_step(
+            x, a, phi0 + dphi * k, dphi, tab[j, 0], tab[j, 1], tab[j, 2], wa, wb, c, dynamic, work, max_iter, tol
+        )
+        s += 2.0 * dphi / (wa + wb)
+        if st != OK:
+            return st, k + 1, s
+        if _diverged(x):
+            return DIVERGED, k + 1, s
+        r = k + 1
+        for i in range(NSTATE):
+            out[r, i] = x[i]
+        out[r, REC_S] = s
+        out[r, REC_PHI] = phi0 + dphi * (k + 1)
+        out[r, REC_OMEGA] = wb
+        out[r, REC_DELTA] = delta
+        out[r, REC_BD] = bd
+        out[r, REC_PSI] = work[0]
+        out[r, REC_FORCE] = F
+        out[r, REC_REGION] = region
+        wa = wb
+    return OK, total + 1, s
+
+
+@kernel
+def _stats_init(stats):
+    for i in range(N_STATS):
+        stats[i] = 0.0
+    for i in (ST_F_MAX, ST_U_MAX, ST_D_MAX, ST_BD_MAX, ST_PSI_MAX, ST_TR_MAX):
+        stats[i] = -np.inf
+    for i in (ST_F_MIN, ST_U_MIN, ST_D_MIN, ST_BD_MIN, ST_PSI_MIN):
+        stats[i] = np.inf
+
+
+@kernel
+def integrate_stats(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats):
+    """Integrate n_periods mesh periods and accumulate interval statistics (no time series).
+
+    ``poincare`` (n_periods, N_PC) receives, at the end of each mesh period, the 10 states and
+    Delta, B_d, psi, F. ``stats`` (N_STATS) accumulates the ``ST_*`` quantities (reset first if
+    ``reset_stats``). Time integrals use the trapezoidal rule. omega goes linearly in time from
+    w0 to w1 over the interval. Returns (status, periods completed, natural time elapsed).
+    ``phi0`` should be a multiple of 2 pi for the samples to lie on the Poincare section.
+    """
+    work = np.zeros(WORK_SIZE)
+    tab = _excitation_table(phi0, n_steps, c)
+    if reset_stats:
+        _stats_init(stats)
+    total = n_periods * n_steps
+    dphi = TWO_PI / n_steps
+    ww = w1 * w1 - w0 * w0
+    F_prev, reg_prev, delta, bd = start_step(x, a, phi0, w0, c, dynamic, work)
+    tr_prev = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
+    s = 0.0
+    wa = w0
+    for k in range(total):
+        wb = math.sqrt(w0 * w0 + ww * (k + 1.0) / total)
+        j = (k + 1) % n_steps
+        st, F, region, delta, bd, split = newmark_step(
+            x, a, phi0 + dphi * k, dphi, tab[j, 0], tab[j, 1], tab[j, 2], wa, wb, c, dynamic, work, max_iter, tol
+        )
+        h = 2.0 * dphi / (wa + wb)
+        s += h
+        if st != OK:
+            return st, k // n_steps, s
+        if _diverged(x):
+            return DIVERGED, k // n_steps, s
+        psi = work[0]
+        stats[ST_TIME] += h
+        stats[ST_STEPS] += 1.0
+        stats[ST_SPLITS] += split
+        if region == 0:
+            stats[ST_SEP_TIME] += h
+        elif region < 0:
+            stats[ST_BACK_TIME] += h
+            if reg_prev >= 0:
+                stats[ST_BACK_IMPACTS] += 1.0
+        elif reg_prev == 0:
+            stats[ST_DRIVE_IMPACTS] += 1.0
+        stats[ST_F_SUM] += 0.5 * h * (F + F_prev)
+        stats[ST_F_SQ] += 0.5 * h * (F * F + F_prev * F_prev)
+        tr = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
+        stats[ST_TR_SQ] += 0.5 * h * (tr + tr_prev)
+        rp = max(x[0] * x[0] + x[1] * x[1], x[2] * x[2] + x[3] * x[3])
+        if rp > stats[ST_TR_MAX]:
+            stats[ST_TR_MAX] = rp
+        if F > stats[ST_F_MAX]:
+            stats[ST_F_MAX] = F
+        if F < stats[ST_F_MIN]:
+            stats[ST_F_MIN] = F
+        if x[4] > stats[ST_U_MAX]:
+            stats[ST_U_MAX] = x[4]
+        if x[4] < stats[ST_U_MIN]:
+            stats[ST_U_MIN] = x[4]
+        if delta > stats[ST_D_MAX]:
+            stats[ST_D_MAX] = delta
+        if delta < stats[ST_D_MIN]:
+            stats[ST_D_MIN] = delta
+        if bd > stats[ST_BD_MAX]:
+            stats[ST_BD_MAX] = bd
+        if bd < stats[ST_BD_MIN]:
+            stats[ST_BD_MIN] = bd
+        if psi > stats[ST_PSI_MAX]:
+            stats[ST_PSI_MAX] = psi
+        if psi < stats[ST_PSI_MIN]:
+            stats[ST_PSI_MIN] = psi
+        F_prev = F
+        tr_prev = tr
+        reg_prev = region
+        if j == 0:
+            p = (k + 1) // n_steps - 1
+            for i in range(NSTATE):
+                poincare[p, i] = x[i]
+            poincare[p, PC_DELTA] = delta
+            poincare[p, PC_BD] = bd
+            poincare[p, PC_PSI] = psi
+            poincare[p, PC_FORCE] = F
+        wa = wb
+    stats[ST_TR_MAX] = math.sqrt(stats[ST_TR_MAX])
+    return OK, n_periods, s
+
+
+@kernel
+def integrate_stats_batch(
+    X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol
+):
+    """Advance a batch of independent systems by n_periods each (one call for a vector env).
+
+    X (n, 10), A (n, 5), W0/W1 (n,), C (n, N_CONSTS) constants per system, dynamic (n,) model
+    codes, poincare (n, n_periods, N_PC), stats (n, N_STATS), status (n,) int64 and elapsed (n,)
+    outputs. Each system starts at mesh phase 0 (a Poincare section). A system whose status is
+    not OK is left in an unspecified state; the caller resets it.
+    """
+    n = X.shape[0]
+    for j in range(n):
+        st, done, s = integrate_stats(
+            X[j], A[j], 0.0, W0[j], W1[j], n_periods, n_steps, C[j], dynamic[j], poincare[j], stats[j], max_iter, tol, True
+        )
+        status[j] = st
+        elapsed[j] = s
+
+
+@kernel
+def static_equilibrium(c, dynamic, phi0, out):
+    """Drive-side static equilibrium with kappa = 0 and the TE frozen at phase phi0 (A10).
+
+    Writes positions and zero velocities into ``out`` (10). Bearings deflect by the static mesh
+    force F_s along the line of action (and by gravity, if set); U closes Delta = B_d + F_s.
+    """
+    geo = np.zeros(GEO_SIZE)
+    q = np.zeros(5)
+    Fs = c[C_FS]
+    lam_p = c[C_EPS_P] * c[C_SIG_P] ** 2
+    lam_g = c[C_EPS_G] * c[C_SIG_G] ** 2
+    psi = c[C_ALPHA0]
+    bd = c[C_BC]
+    for it in range(100):
+        sp = math.sin(psi)
+        cp = math.cos(psi)
+        q[0] = -sp * Fs / lam_p
+        q[1] = cp * Fs / lam_p - c[C_GP] / lam_p
+        q[2] = sp * Fs / lam_g
+        q[3] = -cp * Fs / lam_g - c[C_GG] / lam_g
+        trans = (q[0] - q[2]) * sp - (q[1] - q[3]) * cp
+        q[4] = bd + Fs + c[C_E1] * math.cos(phi0 + c[C_PHI_E]) - trans
+        geometry(q, c, dynamic, geo)
+        if abs(geo[0] - psi) < 1e-15 and abs(geo[1] - bd) < 1e-15:
+            break
+        psi = geo[0]
+        bd = geo[1]
+    for i in range(5):
+        out[i] = q[i]
+        out[5 + i] = 0.0

@@ -1,0 +1,280 @@
+"""Physical parameters of the spur gear-bearing pair and their dimensionless form.
+
+`GearParams` holds the inputs in SI units (Table 1 of the paper plus the decisions A1-A10 of
+MODEL.md); `GearParams.dimensionless()` returns the constants the numba kernels use, packed in a
+float64 array whose layout is fixed by the ``C_*`` indices below.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+# --------------------------------------------------------------------------------------------
+# Layout of the float64 constants array passed to the kernels (dimensionless, natural time).
+C_EPS_P = 0  # m_p / m_e
+C_EPS_G = 1  # m_g / m_e
+C_SIG_P = 2  # sqrt(k_p / (m_p omega_n^2))
+C_SIG_G = 3  # sqrt(k_g / (m_g omega_n^2))
+C_XI_BP = 4  # pinion bearing damping ratio
+C_XI_BG = 5  # gear bearing damping ratio
+C_XI_M = 6  # mesh damping ratio
+C_KAPPA = 7  # relative amplitude of the mesh-stiffness harmonic
+C_PHI_K = 8  # stiffness phase [rad]
+C_E1 = 9  # TE amplitude / b0
+C_PHI_E = 10  # TE phase [rad]
+C_FS = 11  # static mesh load / (k_m0 b0)
+C_A0 = 12  # nominal centre distance / b0
+C_R = 13  # (r_bp + r_bg) / b0
+C_BC = 14  # half backlash / b0
+C_ALPHA0 = 15  # nominal pressure angle [rad]
+C_GP = 16  # pinion weight along -y / (k_m0 b0) (0 unless gravity is switched on)
+C_GG = 17  # gear weight along -y / (k_m0 b0)
+C_SIN_A0 = 18  # sin(alpha0), precomputed
+C_COS_A0 = 19  # cos(alpha0)
+N_CONSTS = 20
+
+MODELS = ("constant", "dynamic")
+
+
+def model_code(model: str) -> int:
+    """Return the kernel code of a backlash model name (0 = constant, 1 = dynamic)."""
+    if not isinstance(model, str) or model not in MODELS:
+        raise ValueError(f"model must be one of {MODELS}, got {model!r}")
+    return MODELS.index(model)
+
+
+def _positive(name: str, value: float) -> None:
+    if not math.isfinite(value) or value <= 0.0:
+        raise ValueError(f"GearParams.{name} must be a finite number > 0, got {value!r}")
+
+
+def _nonneg(name: str, value: float, upper: float | None = None) -> None:
+    ok = math.isfinite(value) and value >= 0.0 and (upper is None or value < upper)
+    if not ok:
+        rng = f"[0, {upper})" if upper is not None else "[0, inf)"
+        raise ValueError(f"GearParams.{name} must be finite and in {rng}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class GearParams:
+    """Inputs of the 6-DOF spur gear-bearing model, SI units (MODEL.md sec. 1).
+
+    Defaults are Table 1 of the paper with the decisions of MODEL.md (kappa = 0.2, base radii,
+    b0 = half backlash, damping from ratios). All fields are validated on construction; a bad
+    value raises ``ValueError`` naming the field and its allowed range.
+
+    Attributes:
+        pressure_angle_deg: nominal pressure angle alpha0 [deg], in (0, 45).
+        J_p, J_g: polar moments of inertia of pinion and gear [kg m^2].
+        m_p, m_g: masses [kg].
+        k_p, k_g: bearing stiffnesses [N/m].
+        k_m0: mean mesh stiffness [N/m].
+        z_p, z_g: tooth numbers (integers >= 5).
+        module: module [m].
+        e_m1: first-harmonic static transmission error amplitude [m].
+        phi_e: TE phase [rad].
+        kappa: relative amplitude of the mesh-stiffness harmonic [-], in [0, 1).
+        phi_k: stiffness phase [rad].
+        b_c: half backlash [m].
+        T_p, T_g: driving and load torques [N m].
+        xi_m: mesh damping ratio [-].
+        xi_p, xi_g: bearing damping ratios [-].
+        b0: length scale of the dimensionless equations [m] (default: the half backlash).
+        gravity: standard gravity along -y [m/s^2]; 0 (default) reproduces the paper's eq. (10).
+    """
+
+    pressure_angle_deg: float = 20.0
+    J_p: float = 0.041
+    J_g: float = 0.079
+    m_p: float = 1.53
+    m_g: float = 3.01
+    k_p: float = 2e8
+    k_g: float = 2e8
+    k_m0: float = 7.74e8
+    z_p: int = 55
+    z_g: int = 75
+    module: float = 2e-3
+    e_m1: float = 1e-5
+    phi_e: float = 0.0
+    kappa: float = 0.2
+    phi_k: float = 0.0
+    b_c: float = 2e-5
+    T_p: float = 22.0
+    T_g: float = 30.0
+    xi_m: float = 0.07
+    xi_p: float = 0.07
+    xi_g: float = 0.07
+    b0: float | None = None
+    gravity: float = 0.0
+    _consts: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if f.name.startswith("_"):
+                continue
+            v = getattr(self, f.name)
+            if f.name == "b0" and v is None:
+                continue
+            if f.name in ("z_p", "z_g"):
+                if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 5:
+                    raise ValueError(f"GearParams.{f.name} must be an integer >= 5, got {v!r}")
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise ValueError(f"GearParams.{f.name} must be a real number, got {v!r}")
+            object.__setattr__(self, f.name, float(v))
+        a = self.pressure_angle_deg
+        if not (math.isfinite(a) and 0.0 < a < 45.0):
+            raise ValueError(f"GearParams.pressure_angle_deg must be in (0, 45) deg, got {a!r}")
+        for name in ("J_p", "J_g", "m_p", "m_g", "k_p", "k_g", "k_m0", "module", "b_c", "T_p", "T_g"):
+            _positive(name, getattr(self, name))
+        if self.b0 is not None:
+            _positive("b0", self.b0)
+        _nonneg("e_m1", self.e_m1)
+        _nonneg("kappa", self.kappa, 1.0)
+        for name in ("xi_m", "xi_p", "xi_g"):
+            _nonneg(name, getattr(self, name), 10.0)
+        _nonneg("gravity", self.gravity, 1000.0)
+        for name in ("phi_e", "phi_k"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"GearParams.{name} must be a finite angle [rad], got {getattr(self, name)!r}")
+        object.__setattr__(self, "_consts", self._build_consts())
+
+    # ---------------------------------------------------------------- derived quantities (SI)
+    @property
+    def alpha0(self) -> float:
+        """Nominal pressure angle [rad]."""
+        return math.radians(self.pressure_angle_deg)
+
+    @property
+    def r_bp(self) -> float:
+        """Pinion base radius [m] (A1)."""
+        return self.module * self.z_p * math.cos(self.alpha0) / 2.0
+
+    @property
+    def r_bg(self) -> float:
+        """Gear base radius [m] (A1)."""
+        return self.module * self.z_g * math.cos(self.alpha0) / 2.0
+
+    @property
+    def a0(self) -> float:
+        """Standard centre distance [m] (A2)."""
+        return self.module * (self.z_p + self.z_g) / 2.0
+
+    @property
+    def length_scale(self) -> float:
+        """b0 [m]: the length scale of the dimensionless coordinates."""
+        return self.b_c if self.b0 is None else float(self.b0)
+
+    @property
+    def m_e(self) -> float:
+        """Equivalent mass of the torsional mesh DOF [kg]."""
+        return self.J_p * self.J_g / (self.J_p * self.r_bg**2 + self.J_g * self.r_bp**2)
+
+    @property
+    def omega_n(self) -> float:
+        """Reference natural frequency sqrt(k_m0/m_e) [rad/s]."""
+        return math.sqrt(self.k_m0 / self.m_e)
+
+    @property
+    def c_m(self) -> float:
+        """Mesh damping coefficient [N s/m] (A5)."""
+        return 2.0 * self.xi_m * math.sqrt(self.k_m0 * self.m_e)
+
+    @property
+    def c_p(self) -> float:
+        """Pinion bearing damping coefficient [N s/m] (A5)."""
+        return 2.0 * self.xi_p * math.sqrt(self.k_p * self.m_p)
+
+    @property
+    def c_g(self) -> float:
+        """Gear bearing damping coefficient [N s/m] (A5)."""
+        return 2.0 * self.xi_g * math.sqrt(self.k_g * self.m_g)
+
+    @property
+    def static_mesh_load(self) -> float:
+        """Static mesh force m_e (r_bp T_p/J_p + r_bg T_g/J_g) [N]."""
+        return self.m_e * (self.r_bp * self.T_p / self.J_p + self.r_bg * self.T_g / self.J_g)
+
+    def mesh_frequency_hz(self, omega: float) -> float:
+        """Mesh frequency [Hz] of the dimensionless meshing frequency ``omega``."""
+        return omega * self.omega_n / (2.0 * math.pi)
+
+    def pinion_rpm(self, omega: float) -> float:
+        """Pinion speed [rev/min] at dimensionless meshing frequency ``omega``."""
+        return 60.0 * self.mesh_frequency_hz(omega) / self.z_p
+
+    # ---------------------------------------------------------------- dimensionless constants
+    def _build_consts(self) -> np.ndarray:
+        b0 = self.length_scale
+        me = self.m_e
+        c = np.zeros(N_CONSTS)
+        c[C_EPS_P] = self.m_p / me
+        c[C_EPS_G] = self.m_g / me
+        c[C_SIG_P] = math.sqrt((self.k_p / self.k_m0) / c[C_EPS_P])
+        c[C_SIG_G] = math.sqrt((self.k_g / self.k_m0) / c[C_EPS_G])
+        c[C_XI_BP] = self.xi_p
+        c[C_XI_BG] = self.xi_g
+        c[C_XI_M] = self.xi_m
+        c[C_KAPPA] = self.kappa
+        c[C_PHI_K] = self.phi_k
+        c[C_E1] = self.e_m1 / b0
+        c[C_PHI_E] = self.phi_e
+        c[C_FS] = self.static_mesh_load / (self.k_m0 * b0)
+        c[C_A0] = self.a0 / b0
+        c[C_R] = (self.r_bp + self.r_bg) / b0
+        c[C_BC] = self.b_c / b0
+        c[C_ALPHA0] = self.alpha0
+        c[C_GP] = self.m_p * self.gravity / (self.k_m0 * b0)
+        c[C_GG] = self.m_g * self.gravity / (self.k_m0 * b0)
+        c[C_SIN_A0] = math.sin(self.alpha0)
+        c[C_COS_A0] = math.cos(self.alpha0)
+        c.setflags(write=False)
+        return c
+
+    @property
+    def consts(self) -> np.ndarray:
+        """Read-only float64 array of dimensionless constants (layout: the ``C_*`` indices)."""
+        return self._consts
+
+    def dimensionless(self) -> dict[str, float]:
+        """Named dimensionless constants (MODEL.md sec. 3-4), for reports and tests."""
+        c = self._consts
+        return {
+            "eps_p": c[C_EPS_P],
+            "eps_g": c[C_EPS_G],
+            "lam_p": self.k_p / self.k_m0,
+            "lam_g": self.k_g / self.k_m0,
+            "sigma_p": c[C_SIG_P],
+            "sigma_g": c[C_SIG_G],
+            "E1": c[C_E1],
+            "F_s": c[C_FS],
+            "A0": c[C_A0],
+            "R": c[C_R],
+            "B_c": c[C_BC],
+            "xi_m": c[C_XI_M],
+            "xi_p": c[C_XI_BP],
+            "xi_g": c[C_XI_BG],
+            "kappa": c[C_KAPPA],
+        }
+
+    def replace(self, **changes: Any) -> GearParams:
+        """Return a copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict of the SI inputs (JSON-serialisable)."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if not f.name.startswith("_")}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> GearParams:
+        """Build from a dict; unknown keys raise ``ValueError`` listing the valid ones."""
+        valid = [f.name for f in fields(cls) if not f.name.startswith("_")]
+        unknown = sorted(set(data) - set(valid))
+        if unknown:
+            raise ValueError(f"unknown GearParams field(s) {unknown}; valid fields: {valid}")
+        return cls(**data)

@@ -1,0 +1,54 @@
+"""Figures of one simulated run: time history, phase portrait and Poincare map."""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from ..simulator import Trajectory
+from .common import new_figure
+
+
+def plot_trajectory(traj: Trajectory, channel: str = "delta", last_periods: int = 20) -> Figure:
+    """Time history (last periods), phase portrait and Poincare map of one run.
+
+    Args:
+        traj: a recorded :class:`~gear_env.simulator.Trajectory`.
+        channel: ``"delta"`` (dynamic transmission error, b0 units) or ``"U"``.
+        last_periods: mesh periods shown in the time history.
+    """
+    if channel not in ("delta", "U"):
+        raise ValueError(f"channel must be 'delta' or 'U', got {channel!r}")
+    n = traj.steps_per_period
+    x = traj[channel]
+    dx = traj["ddelta"] if channel == "delta" else traj["dU"]
+    tau = traj.phase / (2 * np.pi)
+    fig = new_figure(12, 4.2)
+    axs = fig.subplots(1, 3)
+    k = min(len(x), last_periods * n + 1)
+    axs[0].plot(tau[-k:], x[-k:], lw=0.8)
+    axs[0].plot(tau[-k:], traj["bd"][-k:], "k--", lw=0.6, label="$B_d$")
+    axs[0].plot(tau[-k:], -traj["bd"][-k:], "k--", lw=0.6)
+    axs[0].set_xlabel("mesh periods")
+    axs[0].set_ylabel(f"{channel} [b0]")
+    axs[0].set_title("time history")
+    axs[0].legend(loc="upper right", fontsize=8)
+    axs[1].plot(x, dx, lw=0.4)
+    axs[1].set_xlabel(f"{channel} [b0]")
+    axs[1].set_ylabel(f"d{channel}/ds")
+    axs[1].set_title("phase portrait")
+    px = x[n::n]
+    pdx = dx[n::n]
+    axs[2].plot(px, pdx, ".", ms=3)
+    axs[2].set_xlabel(f"{channel} [b0]")
+    axs[2].set_ylabel(f"d{channel}/ds")
+    axs[2].set_title(f"Poincare map ({len(px)} points)")
+    for arr, setter in ((px, axs[2].set_xlim), (pdx, axs[2].set_ylim)):
+        lo, hi = float(np.min(arr)), float(np.max(arr))
+        if hi - lo < 1e-3:  # a periodic orbit: do not blow round-off up to the full axis
+            mid = 0.5 * (hi + lo)
+            setter(mid - 0.05, mid + 0.05)
+    axs[2].ticklabel_format(useOffset=False)
+    w = traj.omega
+    fig.suptitle(f"{traj.model} backlash, omega = {w[0]:.4g}" + ("" if np.all(w == w[0]) else f" -> {w[-1]:.4g}"))
+    return fig

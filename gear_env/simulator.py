@@ -1,0 +1,426 @@
+"""Python API of the simulator: validation, state handling and results objects.
+
+* :func:`simulate` - one run at a fixed meshing frequency: a transient, then recorded periods.
+* :class:`GearSimulator` - a stateful simulator that advances by whole mesh periods under a
+  constant or linearly ramping meshing frequency and keeps its state between calls (the
+  environment uses it).
+
+Units: the meshing frequency ``omega`` is Omega/omega_n (dimensionless); displacements are in
+b0 units (b0 = half backlash by default); time ``s`` is natural time omega_n t (use
+``Trajectory.time_seconds`` for seconds).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from . import kernels as K
+from .errors import SimulationDivergedError
+from .params import C_E1, C_PHI_E, GearParams, model_code
+
+DEFAULT_STEPS_PER_PERIOD = 128
+"""Newmark steps per mesh period; chosen by the convergence study in docs/SIMULATOR.md."""
+
+NEWTON_MAX_ITER = 12
+NEWTON_TOL = 1e-10
+
+STATE_NAMES = ("X_p", "Y_p", "X_g", "Y_g", "U", "dX_p", "dY_p", "dX_g", "dY_g", "dU")
+
+_STATUS_TEXT = {
+    K.DIVERGED: f"state became non-finite or exceeded {K.DIVERGENCE_LIMIT:g} b0",
+    K.NEWTON_FAILED: "Newton iteration did not converge even after splitting the step 64 times",
+}
+
+
+def check_omega(omega: Any, name: str = "omega") -> float:
+    """Validate a dimensionless meshing frequency (finite, > 0) and return it as float."""
+    if isinstance(omega, bool) or not isinstance(omega, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} must be a real number > 0, got {omega!r}")
+    w = float(omega)
+    if not math.isfinite(w) or w <= 0.0:
+        raise ValueError(f"{name} must be a finite number > 0 (Omega/omega_n), got {omega!r}")
+    if w > 100.0:
+        raise ValueError(f"{name} must be <= 100 (Omega/omega_n), got {omega!r}")
+    return w
+
+
+def check_count(value: Any, name: str, minimum: int = 1) -> int:
+    """Validate an integer count >= minimum and return it."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def check_steps(steps_per_period: Any) -> int:
+    """Validate the number of Newmark steps per mesh period (8 .. 100000)."""
+    n = check_count(steps_per_period, "steps_per_period", 8)
+    if n > 100_000:
+        raise ValueError(f"steps_per_period must be in [8, 100000], got {steps_per_period!r}")
+    return n
+
+
+def default_initial_state(params: GearParams, model: str = "dynamic") -> np.ndarray:
+    """Default initial state (MODEL.md A10): drive-side static equilibrium, zero velocities.
+
+    Returns a float64 array of 10 values [X_p, Y_p, X_g, Y_g, U, and their derivatives] in b0
+    units (derivatives per unit natural time).
+    """
+    out = np.zeros(K.NSTATE)
+    K.static_equilibrium(params.consts, model_code(model), 0.0, out)
+    return out
+
+
+def _check_state(state: Any) -> np.ndarray:
+    arr = np.asarray(state, dtype=float)
+    if arr.shape != (K.NSTATE,):
+        raise ValueError(f"initial_state must have shape (10,) [5 positions, 5 velocities], got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError("initial_state must be finite")
+    return arr.copy()
+
+
+@dataclass
+class IntervalStats:
+    """Statistics of one advance of :class:`GearSimulator` (no time series).
+
+    Attributes:
+        omega_start, omega_end: meshing frequency at the start and end of the interval.
+        periods: mesh periods simulated.
+        duration: natural time elapsed (omega_n t).
+        poincare: (periods, 14) array; columns 0-9 the state at each phase 2 pi k, then Delta,
+            B_d, psi [rad], mesh force (all b0 / k_m0 b0 units).
+        stats: raw statistics vector (see ``kernels.ST_*``).
+    """
+
+    omega_start: float
+    omega_end: float
+    periods: int
+    duration: float
+    poincare: np.ndarray
+    stats: np.ndarray
+
+    @property
+    def separation_fraction(self) -> float:
+        """Fraction of time the teeth were apart or in back contact (contact loss)."""
+        return float((self.stats[K.ST_SEP_TIME] + self.stats[K.ST_BACK_TIME]) / max(self.stats[K.ST_TIME], 1e-300))
+
+    @property
+    def back_impacts(self) -> int:
+        """Number of entries into back-side contact."""
+        return int(self.stats[K.ST_BACK_IMPACTS])
+
+    @property
+    def drive_impacts(self) -> int:
+        """Number of re-entries into drive-side contact after a separation."""
+        return int(self.stats[K.ST_DRIVE_IMPACTS])
+
+    @property
+    def force_mean(self) -> float:
+        """Time mean of the dimensionless mesh force F/(k_m0 b0)."""
+        return float(self.stats[K.ST_F_SUM] / self.stats[K.ST_TIME])
+
+    @property
+    def force_rms_dynamic(self) -> float:
+        """RMS of the fluctuation of the mesh force about its mean (k_m0 b0 units)."""
+        t = self.stats[K.ST_TIME]
+        m = self.stats[K.ST_F_SUM] / t
+        return float(math.sqrt(max(self.stats[K.ST_F_SQ] / t - m * m, 0.0)))
+
+    @property
+    def force_peak(self) -> float:
+        """Largest dimensionless mesh force in the interval."""
+        return float(self.stats[K.ST_F_MAX])
+
+    @property
+    def translation_rms(self) -> float:
+        """RMS bearing deflection sqrt(mean((X_p^2+Y_p^2+X_g^2+Y_g^2)/2)) [b0]."""
+        return float(math.sqrt(self.stats[K.ST_TR_SQ] / self.stats[K.ST_TIME]))
+
+    @property
+    def translation_peak(self) -> float:
+        """Largest radial bearing deflection of either gear [b0]."""
+        return float(self.stats[K.ST_TR_MAX])
+
+    def amplitude(self, name: str) -> float:
+        """Half peak-to-peak of 'U', 'delta', 'bd', 'psi' or 'force' over the interval."""
+        idx = {
+            "U": (K.ST_U_MAX, K.ST_U_MIN),
+            "delta": (K.ST_D_MAX, K.ST_D_MIN),
+            "bd": (K.ST_BD_MAX, K.ST_BD_MIN),
+            "psi": (K.ST_PSI_MAX, K.ST_PSI_MIN),
+            "force": (K.ST_F_MAX, K.ST_F_MIN),
+        }
+        if name not in idx:
+            raise ValueError(f"amplitude name must be one of {sorted(idx)}, got {name!r}")
+        hi, lo = idx[name]
+        return float(0.5 * (self.stats[hi] - self.stats[lo]))
+
+
+class GearSimulator:
+    """Stateful simulator of the gear-bearing pair, advanced by whole mesh periods.
+
+    Each call to :meth:`advance` starts and ends on the Poincare section (mesh phase 2 pi k), so
+    successive calls continue one trajectory seamlessly; omega may ramp linearly in time within
+    a call (a motor's bounded acceleration).
+
+    Args:
+        params: physical parameters (SI); default Table 1.
+        model: ``"constant"`` or ``"dynamic"`` backlash.
+        steps_per_period: Newmark steps per mesh period (default 128).
+        omega: meshing frequency Omega/omega_n at the start.
+        initial_state: 10 values in b0 units, or None for MODEL.md A10.
+    """
+
+    def __init__(
+        self,
+        params: GearParams | None = None,
+        model: str = "dynamic",
+        steps_per_period: int = DEFAULT_STEPS_PER_PERIOD,
+        omega: float = 1.0,
+        initial_state: Any = None,
+    ):
+        self.params = params if params is not None else GearParams()
+        if not isinstance(self.params, GearParams):
+            raise ValueError(f"params must be a GearParams, got {type(self.params).__name__}")
+        self.model = model
+        self.model_code = model_code(model)
+        self.steps_per_period = check_steps(steps_per_period)
+        self._consts = np.ascontiguousarray(self.params.consts)
+        self.reset(initial_state=initial_state, omega=omega)
+
+    def reset(self, initial_state: Any = None, omega: float | None = None) -> None:
+        """Return to the given state (default A10) at time 0 and mesh phase 0."""
+        if omega is not None:
+            self.omega = check_omega(omega)
+        self.x = default_initial_state(self.params, self.model) if initial_state is None else _check_state(initial_state)
+        self.a = np.zeros(K.NDOF)
+        self.time = 0.0
+        self.periods_done = 0
+
+    @property
+    def state(self) -> np.ndarray:
+        """Copy of the current state (10 values, b0 units)."""
+        return self.x.copy()
+
+    def _raise(self, status: int, period: int, omega: float) -> None:
+        raise SimulationDivergedError(self.periods_done + period, _STATUS_TEXT.get(status, f"status {status}"), omega)
+
+    def advance(self, periods: int, omega_end: float | None = None) -> IntervalStats:
+        """Advance by ``periods`` mesh periods while omega goes linearly in time to ``omega_end``.
+
+        Returns :class:`IntervalStats` (Poincare samples and interval statistics). Raises
+        :class:`SimulationDivergedError` if the state blows up; the simulator's state is then
+        left unchanged (the interval is discarded).
+        """
+        n = check_count(periods, "periods")
+        w0 = self.omega
+        w1 = w0 if omega_end is None else check_omega(omega_end, "omega_end")
+        x = self.x.copy()
+        a = self.a.copy()
+        pc = np.empty((n, K.N_PC))
+        stats = np.empty(K.N_STATS)
+        status, done, s = K.integrate_stats(
+            x, a, 0.0, w0, w1, n, self.steps_per_period, self._consts, self.model_code, pc, stats,
+            NEWTON_MAX_ITER, NEWTON_TOL, True,
+        )  # fmt: skip
+        if status != K.OK:
+            self._raise(status, done, w0)
+        self.x, self.a = x, a
+        self.omega = w1
+        self.time += s
+        self.periods_done += n
+        return IntervalStats(w0, w1, n, s, pc, stats)
+
+    def record(self, periods: int, omega_end: float | None = None) -> Trajectory:
+        """Like :meth:`advance` but returns the full time series of the interval."""
+        n = check_count(periods, "periods")
+        w0 = self.omega
+        w1 = w0 if omega_end is None else check_omega(omega_end, "omega_end")
+        x = self.x.copy()
+        a = self.a.copy()
+        out = np.empty((n * self.steps_per_period + 1, K.N_REC))
+        status, rows, s = K.integrate_record(
+            x, a, 0.0, w0, w1, n, self.steps_per_period, self._consts, self.model_code, out, NEWTON_MAX_ITER, NEWTON_TOL
+        )
+        if status != K.OK:
+            self._raise(status, (rows - 1) // self.steps_per_period, w0)
+        out[:, K.REC_S] += self.time
+        self.x, self.a = x, a
+        self.omega = w1
+        self.time += s
+        self.periods_done += n
+        return Trajectory(
+            data=out,
+            steps_per_period=self.steps_per_period,
+            model=self.model,
+            params=self.params,
+        )
+
+
+@dataclass
+class Trajectory:
+    """Recorded time series of a run, one row per Newmark step (plus the start).
+
+    Columns of ``data``: the 10 states, natural time s, mesh phase phi [rad], omega, Delta, B_d,
+    psi [rad], mesh force F/(k_m0 b0), contact region (+1 drive, 0 apart, -1 back). Poincare
+    samples are the rows at phase 2 pi k (every ``steps_per_period`` rows).
+    """
+
+    data: np.ndarray
+    steps_per_period: int
+    model: str
+    params: GearParams
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    # time series accessors -------------------------------------------------------------
+    @property
+    def s(self) -> np.ndarray:
+        """Natural time omega_n t."""
+        return self.data[:, K.REC_S]
+
+    @property
+    def time_seconds(self) -> np.ndarray:
+        """Physical time [s]."""
+        return self.s / self.params.omega_n
+
+    @property
+    def phase(self) -> np.ndarray:
+        """Mesh phase [rad]."""
+        return self.data[:, K.REC_PHI]
+
+    @property
+    def omega(self) -> np.ndarray:
+        """Meshing frequency Omega/omega_n at each row."""
+        return self.data[:, K.REC_OMEGA]
+
+    @property
+    def states(self) -> np.ndarray:
+        """(rows, 10) states in b0 units."""
+        return self.data[:, : K.NSTATE]
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """A column by name: a state name (``'U'``, ``'dU'``, ``'X_p'``...) or ``'delta'``,
+        ``'ddelta'`` (dDelta/ds), ``'bd'``, ``'psi'``, ``'force'``, ``'region'``, ``'s'``, ``'phase'``,
+        ``'omega'``."""
+        if name in STATE_NAMES:
+            return self.data[:, STATE_NAMES.index(name)]
+        if name == "ddelta":
+            return self._ddelta()
+        cols = {
+            "s": K.REC_S,
+            "phase": K.REC_PHI,
+            "omega": K.REC_OMEGA,
+            "delta": K.REC_DELTA,
+            "bd": K.REC_BD,
+            "psi": K.REC_PSI,
+            "force": K.REC_FORCE,
+            "region": K.REC_REGION,
+        }
+        if name not in cols:
+            raise KeyError(f"unknown channel {name!r}; valid: {list(STATE_NAMES) + ['ddelta'] + list(cols)}")
+        return self.data[:, cols[name]]
+
+    def _ddelta(self) -> np.ndarray:
+        """dDelta/ds from the recorded state (the psi' term is omitted: it is ~1e-15, MODEL.md 6)."""
+        d = self.data
+        psi = d[:, K.REC_PSI]
+        c = self.params.consts
+        sp, cp = np.sin(psi), np.cos(psi)
+        te = c[C_E1] * d[:, K.REC_OMEGA] * np.sin(d[:, K.REC_PHI] + c[C_PHI_E])
+        return (d[:, 5] - d[:, 7]) * sp - (d[:, 6] - d[:, 8]) * cp + d[:, 9] + te
+
+    @property
+    def poincare_rows(self) -> np.ndarray:
+        """Rows at phase 2 pi k after the first (one per recorded mesh period)."""
+        return self.data[self.steps_per_period :: self.steps_per_period]
+
+    def poincare(self, name: str) -> np.ndarray:
+        """Poincare samples (one per recorded mesh period) of a channel (see ``__getitem__``)."""
+        return self[name][self.steps_per_period :: self.steps_per_period]
+
+    def amplitude(self, name: str) -> float:
+        """Half peak-to-peak of a channel over the record (the paper's amplitude)."""
+        v = self[name]
+        return float(0.5 * (v.max() - v.min()))
+
+    @property
+    def contact_loss_fraction(self) -> float:
+        """Fraction of steps (time-weighted) with the teeth apart or in back contact."""
+        s = self.s
+        h = np.diff(s)
+        reg = self["region"][1:]
+        return float(h[reg != 1].sum() / h.sum()) if h.sum() > 0 else 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (the ``gear-env simulate --json`` file)."""
+        w = self.omega
+        return {
+            "omega": float(w[0]) if np.all(w == w[0]) else w.tolist(),
+            "model": self.model,
+            "steps_per_period": self.steps_per_period,
+            "periods": (len(self.data) - 1) // self.steps_per_period,
+            "units": "displacements in b0 (half backlash); force in k_m0 b0; psi in rad",
+            "b0_m": self.params.length_scale,
+            "amplitude_u": self.amplitude("U"),
+            "amplitude_delta": self.amplitude("delta"),
+            "amplitude_bd": self.amplitude("bd"),
+            "amplitude_psi": self.amplitude("psi"),
+            "amplitude_force": self.amplitude("force"),
+            "contact_loss_fraction": self.contact_loss_fraction,
+            "poincare_delta": self.poincare("delta").tolist(),
+            "poincare_u": self.poincare("U").tolist(),
+            "poincare_du": self.poincare("dU").tolist(),
+            "params": self.params.to_dict(),
+            **self.meta,
+        }
+
+    def to_json(self, path: str) -> None:
+        """Write :meth:`to_dict` to ``path`` atomically."""
+        from .io import atomic_write_text
+
+        atomic_write_text(path, json.dumps(self.to_dict(), indent=1))
+
+
+def simulate(
+    omega: float,
+    model: str = "dynamic",
+    periods: int = 200,
+    transient: int = 300,
+    steps_per_period: int = DEFAULT_STEPS_PER_PERIOD,
+    params: GearParams | None = None,
+    initial_state: Any = None,
+) -> Trajectory:
+    """Simulate the gear pair at a fixed meshing frequency.
+
+    Args:
+        omega: meshing frequency Omega/omega_n (> 0).
+        model: ``"constant"`` or ``"dynamic"`` backlash (MODEL.md A8/A9).
+        periods: mesh periods recorded after the transient (>= 1).
+        transient: mesh periods discarded first (>= 0).
+        steps_per_period: Newmark steps per mesh period.
+        params: physical parameters (SI); default Table 1 with kappa = 0.2.
+        initial_state: 10 values in b0 units, or None for the static equilibrium (A10).
+
+    Returns:
+        :class:`Trajectory` of the recorded periods (time series and Poincare samples).
+
+    Raises:
+        ValueError: on invalid arguments (the message names the argument).
+        SimulationDivergedError: if the state blows up.
+    """
+    w = check_omega(omega)
+    check_count(periods, "periods")
+    tr = check_count(transient, "transient", 0)
+    sim = GearSimulator(params, model, steps_per_period, w, initial_state)
+    if tr > 0:
+        sim.advance(tr)
+    traj = sim.record(periods)
+    traj.meta.update({"transient": tr})
+    return traj
