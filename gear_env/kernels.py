@@ -302,7 +302,7 @@ def _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, geo, max_iter, tol):
     v4 = vp4 + gh * a4
     delta, ddelta, bd, f, region = mesh_state_s(q0, q1, q2, q3, q4, v0, v1, v2, v3, v4, ce, se, w_b, c, dynamic, geo)
     F = xim2 * ddelta + kk * f
-    for it in range(max_iter):
+    for _it in range(max_iter):
         sp = geo[12]
         cp = geo[13]
         w0 = sp / ep
@@ -359,7 +359,9 @@ def _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, geo, max_iter, tol):
         v3 = vp3 + gh * a3
         v4 = vp4 + gh * a4
         old_region = region
-        delta, ddelta, bd, f, region = mesh_state_s(q0, q1, q2, q3, q4, v0, v1, v2, v3, v4, ce, se, w_b, c, dynamic, geo)
+        delta, ddelta, bd, f, region = mesh_state_s(
+            q0, q1, q2, q3, q4, v0, v1, v2, v3, v4, ce, se, w_b, c, dynamic, geo
+        )
         F = xim2 * ddelta + kk * f
         # The backlash force is piecewise linear: for the constant model the update is exact
         # once the region it assumed is the region it lands in. The dynamic model's geometry is
@@ -633,7 +635,20 @@ def integrate_stats_batch(
     n = X.shape[0]
     for j in range(n):
         st, done, s = integrate_stats(
-            X[j], A[j], 0.0, W0[j], W1[j], n_periods, n_steps, C[j], dynamic[j], poincare[j], stats[j], max_iter, tol, True
+            X[j],
+            A[j],
+            0.0,
+            W0[j],
+            W1[j],
+            n_periods,
+            n_steps,
+            C[j],
+            dynamic[j],
+            poincare[j],
+            stats[j],
+            max_iter,
+            tol,
+            True,
         )
         status[j] = st
         elapsed[j] = s
@@ -653,7 +668,7 @@ def static_equilibrium(c, dynamic, phi0, out):
     lam_g = c[C_EPS_G] * c[C_SIG_G] ** 2
     psi = c[C_ALPHA0]
     bd = c[C_BC]
-    for it in range(100):
+    for _it in range(100):
         sp = math.sin(psi)
         cp = math.cos(psi)
         q[0] = -sp * Fs / lam_p

@@ -48,16 +48,42 @@ def model_code(model: str) -> int:
     return MODELS.index(model)
 
 
-def _positive(name: str, value: float) -> None:
-    if not math.isfinite(value) or value <= 0.0:
-        raise ValueError(f"GearParams.{name} must be a finite number > 0, got {value!r}")
+# allowed ranges of the SI inputs: (low, high, low inclusive?, high inclusive?)
+BOUNDS: dict[str, tuple[float, float, bool, bool]] = {
+    "pressure_angle_deg": (0.0, 45.0, False, False),
+    "J_p": (1e-9, 1e6, True, True),
+    "J_g": (1e-9, 1e6, True, True),
+    "m_p": (1e-6, 1e6, True, True),
+    "m_g": (1e-6, 1e6, True, True),
+    "k_p": (1.0, 1e14, True, True),
+    "k_g": (1.0, 1e14, True, True),
+    "k_m0": (1.0, 1e14, True, True),
+    "module": (1e-5, 1.0, True, True),
+    "e_m1": (0.0, 1e-2, True, True),
+    "phi_e": (-1e3, 1e3, True, True),
+    "kappa": (0.0, 1.0, True, False),
+    "phi_k": (-1e3, 1e3, True, True),
+    "b_c": (1e-9, 1e-2, True, True),
+    "T_p": (0.0, 1e7, True, True),
+    "T_g": (0.0, 1e7, True, True),
+    "xi_m": (0.0, 10.0, True, False),
+    "xi_p": (0.0, 10.0, True, False),
+    "xi_g": (0.0, 10.0, True, False),
+    "b0": (1e-9, 1.0, True, True),
+    "gravity": (0.0, 1000.0, True, True),
+}
+TEETH_RANGE = (5, 1000)
 
 
-def _nonneg(name: str, value: float, upper: float | None = None) -> None:
-    ok = math.isfinite(value) and value >= 0.0 and (upper is None or value < upper)
+def _range_text(lo: float, hi: float, lo_in: bool, hi_in: bool) -> str:
+    return f"{'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
+
+
+def _check_range(name: str, value: float) -> None:
+    lo, hi, lo_in, hi_in = BOUNDS[name]
+    ok = math.isfinite(value) and (value >= lo if lo_in else value > lo) and (value <= hi if hi_in else value < hi)
     if not ok:
-        rng = f"[0, {upper})" if upper is not None else "[0, inf)"
-        raise ValueError(f"GearParams.{name} must be finite and in {rng}, got {value!r}")
+        raise ValueError(f"GearParams.{name} must be in {_range_text(lo, hi, lo_in, hi_in)}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -65,8 +91,8 @@ class GearParams:
     """Inputs of the 6-DOF spur gear-bearing model, SI units (MODEL.md sec. 1).
 
     Defaults are Table 1 of the paper with the decisions of MODEL.md (kappa = 0.2, base radii,
-    b0 = half backlash, damping from ratios). All fields are validated on construction; a bad
-    value raises ``ValueError`` naming the field and its allowed range.
+    b0 = half backlash, damping from ratios). All fields are validated on construction against
+    the ranges in ``BOUNDS``; a bad value raises ``ValueError`` naming the field and its range.
 
     Attributes:
         pressure_angle_deg: nominal pressure angle alpha0 [deg], in (0, 45).
@@ -121,28 +147,22 @@ class GearParams:
             if f.name == "b0" and v is None:
                 continue
             if f.name in ("z_p", "z_g"):
-                if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 5:
-                    raise ValueError(f"GearParams.{f.name} must be an integer >= 5, got {v!r}")
+                lo, hi = TEETH_RANGE
+                if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
+                    raise ValueError(f"GearParams.{f.name} must be an integer in [{lo}, {hi}], got {v!r}")
+                object.__setattr__(self, f.name, int(v))
                 continue
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-                raise ValueError(f"GearParams.{f.name} must be a real number, got {v!r}")
+                lo, hi, lo_in, hi_in = BOUNDS[f.name]
+                raise ValueError(
+                    f"GearParams.{f.name} must be a real number in {_range_text(lo, hi, lo_in, hi_in)}, got {v!r}"
+                )
             object.__setattr__(self, f.name, float(v))
-        a = self.pressure_angle_deg
-        if not (math.isfinite(a) and 0.0 < a < 45.0):
-            raise ValueError(f"GearParams.pressure_angle_deg must be in (0, 45) deg, got {a!r}")
-        for name in ("J_p", "J_g", "m_p", "m_g", "k_p", "k_g", "k_m0", "module", "b_c", "T_p", "T_g"):
-            _positive(name, getattr(self, name))
-        if self.b0 is not None:
-            _positive("b0", self.b0)
-        _nonneg("e_m1", self.e_m1)
-        _nonneg("kappa", self.kappa, 1.0)
-        for name in ("xi_m", "xi_p", "xi_g"):
-            _nonneg(name, getattr(self, name), 10.0)
-        _nonneg("gravity", self.gravity, 1000.0)
-        for name in ("phi_e", "phi_k"):
-            if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"GearParams.{name} must be a finite angle [rad], got {getattr(self, name)!r}")
-        object.__setattr__(self, "_consts", self._build_consts())
+            _check_range(f.name, float(v))
+        consts = self._build_consts()
+        if not np.all(np.isfinite(consts)):
+            raise ValueError(f"GearParams give non-finite dimensionless constants: {self!r}")
+        object.__setattr__(self, "_consts", consts)
 
     # ---------------------------------------------------------------- derived quantities (SI)
     @property

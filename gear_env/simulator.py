@@ -37,15 +37,21 @@ _STATUS_TEXT = {
 }
 
 
+OMEGA_MIN = 1e-3
+OMEGA_MAX = 100.0
+
+
 def check_omega(omega: Any, name: str = "omega") -> float:
-    """Validate a dimensionless meshing frequency (finite, > 0) and return it as float."""
+    """Validate a dimensionless meshing frequency (in [OMEGA_MIN, OMEGA_MAX]) and return it as float."""
     if isinstance(omega, bool) or not isinstance(omega, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name} must be a real number > 0, got {omega!r}")
+        raise ValueError(
+            f"{name} (Omega/omega_n) must be a real number in [{OMEGA_MIN:g}, {OMEGA_MAX:g}], got {omega!r}"
+        )
     w = float(omega)
-    if not math.isfinite(w) or w <= 0.0:
-        raise ValueError(f"{name} must be a finite number > 0 (Omega/omega_n), got {omega!r}")
-    if w > 100.0:
-        raise ValueError(f"{name} must be <= 100 (Omega/omega_n), got {omega!r}")
+    if not (math.isfinite(w) and OMEGA_MIN <= w <= OMEGA_MAX):
+        raise ValueError(
+            f"{name} (Omega/omega_n) must be a finite number in [{OMEGA_MIN:g}, {OMEGA_MAX:g}], got {omega!r}"
+        )
     return w
 
 
@@ -199,7 +205,9 @@ class GearSimulator:
         """Return to the given state (default A10) at time 0 and mesh phase 0."""
         if omega is not None:
             self.omega = check_omega(omega)
-        self.x = default_initial_state(self.params, self.model) if initial_state is None else _check_state(initial_state)
+        self.x = (
+            default_initial_state(self.params, self.model) if initial_state is None else _check_state(initial_state)
+        )
         self.a = np.zeros(K.NDOF)
         self.time = 0.0
         self.periods_done = 0

@@ -1,5 +1,6 @@
 """GearParams: MODEL.md sec. 4 values to 6 significant digits, validation messages."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -82,6 +83,6 @@ def test_from_dict_rejects_unknown_keys():
 
 def test_frozen():
     p = GearParams()
-    with pytest.raises(Exception):
+    with pytest.raises(dataclasses.FrozenInstanceError):
         p.kappa = 0.3  # type: ignore[misc]
     assert np.isfinite(p.consts).all()
