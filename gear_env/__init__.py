@@ -2,7 +2,14 @@
 
 from .errors import SimulationDivergedError
 from .params import GearParams
-from .simulator import DEFAULT_STEPS_PER_PERIOD, GearSimulator, IntervalStats, Trajectory, default_initial_state, simulate
+from .simulator import (
+    DEFAULT_STEPS_PER_PERIOD,
+    GearSimulator,
+    IntervalStats,
+    Trajectory,
+    default_initial_state,
+    simulate,
+)
 
 __version__ = "0.1.0"
 
