@@ -27,6 +27,7 @@ def atomic_write(path: str | os.PathLike, writer: Callable[[str], None]) -> None
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or ".")
     os.close(fd)
     try:
+        os.chmod(tmp, _file_mode(target))
         writer(tmp)
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
@@ -57,6 +58,16 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
             fh.write(data)
 
     atomic_write(path, _w)
+
+
+def _file_mode(target: Path) -> int:
+    """Mode of a new file as open() would give it (0o666 less the umask), or the old file's mode."""
+    try:
+        return target.stat().st_mode & 0o7777
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask
 
 
 def _unlink(p: str) -> None:

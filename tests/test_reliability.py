@@ -93,3 +93,12 @@ def test_same_numbers_twice_in_process():
     a = simulate(2.0, model="constant", periods=10, transient=10, steps_per_period=32)
     b = simulate(2.0, model="constant", periods=10, transient=10, steps_per_period=32)
     assert np.array_equal(a.data, b.data)
+
+
+def test_atomic_write_gives_normal_permissions(tmp_path):
+    old = os.umask(0o022)
+    try:
+        atomic_write_text(tmp_path / "r.json", "{}")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "r.json").stat().st_mode & 0o777 == 0o644
