@@ -49,6 +49,7 @@ from .params import (
     C_GG,
     C_GP,
     C_KAPPA,
+    C_MU,
     C_PHI_E,
     C_PHI_K,
     C_R,
@@ -220,6 +221,22 @@ def mesh_state(q, v, ce, se, omega, c, dynamic, geo):
     return mesh_state_s(q[0], q[1], q[2], q[3], q[4], v[0], v[1], v[2], v[3], v[4], ce, se, omega, c, dynamic, geo)
 
 
+FRICTION_SHARPNESS = 10.0
+
+
+@kernel
+def friction_factor(ce, se, c):
+    """[friction extension, GearParams.friction] mu s(phi), s = tanh(10 sin phi): the tangential
+    (off line-of-action) tooth friction force per unit mesh force. ``ce, se`` = cos, sin(phi + phi_e).
+    The friction force mu s F acts on the pinion along (cos psi, sin psi) and on the gear opposite;
+    its moment on the gears is neglected. Returns 0 when friction is off (the paper's model)."""
+    mu = c[C_MU]
+    if mu == 0.0:
+        return 0.0
+    sphi = se * math.cos(c[C_PHI_E]) - ce * math.sin(c[C_PHI_E])
+    return mu * math.tanh(FRICTION_SHARPNESS * sphi)
+
+
 @kernel
 def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
     """Accelerations a = q'' (natural time) at one instant; returns the mesh force Fhat.
@@ -234,10 +251,11 @@ def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
     eg = c[C_EPS_G]
     sgp = c[C_SIG_P]
     sgg = c[C_SIG_G]
-    a[0] = -(2.0 * c[C_XI_BP] * sgp * v[0] + sgp * sgp * q[0] + F * sp / ep)
-    a[1] = -(2.0 * c[C_XI_BP] * sgp * v[1] + sgp * sgp * q[1] - F * cp / ep) - c[C_GP] / ep
-    a[2] = -(2.0 * c[C_XI_BG] * sgg * v[2] + sgg * sgg * q[2] - F * sp / eg)
-    a[3] = -(2.0 * c[C_XI_BG] * sgg * v[3] + sgg * sgg * q[3] + F * cp / eg) - c[C_GG] / eg
+    fr = friction_factor(ce, se, c)  # [friction extension] 0 unless GearParams.friction > 0
+    a[0] = -(2.0 * c[C_XI_BP] * sgp * v[0] + sgp * sgp * q[0] + F * (sp - fr * cp) / ep)
+    a[1] = -(2.0 * c[C_XI_BP] * sgp * v[1] + sgp * sgp * q[1] - F * (cp + fr * sp) / ep) - c[C_GP] / ep
+    a[2] = -(2.0 * c[C_XI_BG] * sgg * v[2] + sgg * sgg * q[2] - F * (sp - fr * cp) / eg)
+    a[3] = -(2.0 * c[C_XI_BG] * sgg * v[3] + sgg * sgg * q[3] + F * (cp + fr * sp) / eg) - c[C_GG] / eg
     a[4] = c[C_FS] - F
     return F
 
@@ -288,6 +306,7 @@ def _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, geo, max_iter, tol):
     dd2 = 1.0 + gh * c2 + bh2 * k2
     ext1 = -c[C_GP] / ep
     ext3 = -c[C_GG] / eg
+    fr = friction_factor(ce, se, c)  # [friction extension] tilts the force off the LOA; 0 by default
     xim2 = 2.0 * c[C_XI_M]
     cd = gh * xim2
     q0 = qp0 + bh2 * a0
@@ -305,10 +324,10 @@ def _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, geo, max_iter, tol):
     for _it in range(max_iter):
         sp = geo[12]
         cp = geo[13]
-        w0 = sp / ep
-        w1 = -cp / ep
-        w2 = -sp / eg
-        w3 = cp / eg
+        w0 = (sp - fr * cp) / ep
+        w1 = -(cp + fr * sp) / ep
+        w2 = -(sp - fr * cp) / eg
+        w3 = (cp + fr * sp) / eg
         # residual r = a + C v + K q + w F - ext
         r0 = a0 + c0 * v0 + k0 * q0 + w0 * F
         r1 = a1 + c0 * v1 + k0 * q1 + w1 * F - ext1

@@ -36,7 +36,8 @@ C_GP = 16  # pinion weight along -y / (k_m0 b0) (0 unless gravity is switched on
 C_GG = 17  # gear weight along -y / (k_m0 b0)
 C_SIN_A0 = 18  # sin(alpha0), precomputed
 C_COS_A0 = 19  # cos(alpha0)
-N_CONSTS = 20
+C_MU = 20  # tooth sliding-friction coefficient (0 = the paper's eq. 10; analysis extension)
+N_CONSTS = 21
 
 MODELS = ("constant", "dynamic")
 
@@ -71,6 +72,7 @@ BOUNDS: dict[str, tuple[float, float, bool, bool]] = {
     "xi_g": (0.0, 10.0, True, False),
     "b0": (1e-9, 1.0, True, True),
     "gravity": (0.0, 1000.0, True, True),
+    "friction": (0.0, 1.0, True, True),
 }
 TEETH_RANGE = (5, 1000)
 
@@ -112,6 +114,12 @@ class GearParams:
         xi_p, xi_g: bearing damping ratios [-].
         b0: length scale of the dimensionless equations [m] (default: the half backlash).
         gravity: standard gravity along -y [m/s^2]; 0 (default) reproduces the paper's eq. (10).
+        friction: tooth sliding-friction coefficient mu [-], in [0, 1]; 0 (default) reproduces eq. (10).
+            Extension (docs/RESULTS.md): a friction force mu F_m s(phi) perpendicular to the line of
+            action, s = tanh(10 sin phi) (a smoothed square wave: the sliding direction reverses at
+            the pitch point and at the tooth-pair change), acting on the bearings; its moment on the
+            gears is neglected. It is the simplest mechanism that moves the centres off the line of
+            action and so makes the meshing angle psi fluctuate.
     """
 
     pressure_angle_deg: float = 20.0
@@ -137,6 +145,7 @@ class GearParams:
     xi_g: float = 0.07
     b0: float | None = None
     gravity: float = 0.0
+    friction: float = 0.0
     _consts: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -253,6 +262,7 @@ class GearParams:
         c[C_GG] = self.m_g * self.gravity / (self.k_m0 * b0)
         c[C_SIN_A0] = math.sin(self.alpha0)
         c[C_COS_A0] = math.cos(self.alpha0)
+        c[C_MU] = self.friction
         c.setflags(write=False)
         return c
 
