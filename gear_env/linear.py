@@ -1,0 +1,149 @@
+"""Linearised gear-bearing model (MODEL.md sec. 5): contact kept, k_m = k_m0, psi = alpha0.
+
+Matrices in the units of MODEL.md sec. 5 (b0 units, natural time s = omega_n t, frequencies in
+units of omega_n)::
+
+    M = diag(eps_p, eps_p, eps_g, eps_g, 1)
+    K = diag(lam_p, lam_p, lam_g, lam_g, 0) + g g^T           (constant backlash)
+    K = diag(lam_p, lam_p, lam_g, lam_g, 0) + g (g - b)^T     (dynamic backlash, non-symmetric)
+    C = diag(2 xi_p sig_p eps_p (x2), 2 xi_g sig_g eps_g (x2), 0) + 2 xi_m g g^T
+    g = (sin a0, -cos a0, -sin a0, cos a0, 1)
+
+with b = dB_d/dq = tan(a0) dA_d/dq = tan(a0) (-1, 0, 1, 0, 0) at the nominal centre distance
+(so that dB_d/dk = sin(a0) tan(a0) for a relative centre separation k along the line of action).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .params import GearParams
+
+
+def _check_model(model: str) -> None:
+    if model not in ("constant", "dynamic"):
+        raise ValueError(f"model must be 'constant' or 'dynamic', got {model!r}")
+
+
+def mesh_vector(params: GearParams) -> np.ndarray:
+    """g = dDelta/dq at psi = alpha0: (sin a0, -cos a0, -sin a0, cos a0, 1)."""
+    a = math.radians(params.pressure_angle_deg)
+    return np.array([math.sin(a), -math.cos(a), -math.sin(a), math.cos(a), 1.0])
+
+
+def backlash_gradient(params: GearParams) -> np.ndarray:
+    """b = dB_d/dq of the dynamic model at the nominal centre distance (b0 units per b0)."""
+    a = math.radians(params.pressure_angle_deg)
+    return math.tan(a) * np.array([-1.0, 0.0, 1.0, 0.0, 0.0])
+
+
+def matrices(params: GearParams | None = None, model: str = "constant") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(M, C, K) of the linearised system, dimensionless (MODEL.md sec. 5 units).
+
+    ``model="dynamic"`` adds the dependence of B_d on the centre positions (non-symmetric K).
+    """
+    _check_model(model)
+    p = params or GearParams()
+    d = p.dimensionless()
+    g = mesh_vector(p)
+    M = np.diag([d["eps_p"], d["eps_p"], d["eps_g"], d["eps_g"], 1.0])
+    K = np.diag([d["lam_p"], d["lam_p"], d["lam_g"], d["lam_g"], 0.0]) + np.outer(g, g)
+    if model == "dynamic":
+        K = K - np.outer(g, backlash_gradient(p))
+    cp = 2.0 * p.xi_p * d["sigma_p"] * d["eps_p"]
+    cg = 2.0 * p.xi_g * d["sigma_g"] * d["eps_g"]
+    C = np.diag([cp, cp, cg, cg, 0.0]) + 2.0 * p.xi_m * np.outer(g, g)
+    return M, C, K
+
+
+def natural_frequencies(params: GearParams | None = None, model: str = "constant") -> np.ndarray:
+    """Undamped natural frequencies w/omega_n (ascending, 5 values) of the linearised system.
+
+    Solves (K - w^2 M) phi = 0. For ``model="dynamic"`` K is non-symmetric (dB_d/dq); its
+    eigenvalues are real for the default parameters (a complex pair raises ``ValueError``).
+    """
+    M, _, K = matrices(params, model)
+    lam = np.linalg.eigvals(np.linalg.solve(M, K))
+    if np.max(np.abs(lam.imag)) > 1e-9 * np.max(np.abs(lam)) or np.min(lam.real) <= 0:
+        raise ValueError(f"linearised system has non-real or non-positive eigenvalues: {lam}")
+    return np.sqrt(np.sort(lam.real))
+
+
+def modes(params: GearParams | None = None, model: str = "constant") -> tuple[np.ndarray, np.ndarray]:
+    """(frequencies w/omega_n ascending, mode shapes as columns) of the undamped linear system."""
+    M, _, K = matrices(params, model)
+    lam, vec = np.linalg.eig(np.linalg.solve(M, K))
+    order = np.argsort(lam.real)
+    return np.sqrt(lam.real[order]), vec.real[:, order]
+
+
+@dataclass(frozen=True)
+class LinearResponse:
+    """Steady response of the linearised system in full drive-side contact (kappa = 0).
+
+    q(phi) = q_static + Re(Q exp(i phi)) for the positions (b0 units) at mesh phase phi;
+    velocities (per unit natural time) are Re(i omega Q exp(i phi)).
+    """
+
+    omega: float
+    q_static: np.ndarray  # (5,)
+    Q: np.ndarray  # (5,) complex amplitudes
+    delta_static: float  # Delta of the static part (= B_c + F_s)
+    delta_amp: complex  # complex amplitude of Delta(phi)
+
+    def state(self, phi: float = 0.0) -> np.ndarray:
+        """The 10 states at mesh phase phi (b0 units, natural time)."""
+        e = np.exp(1j * phi)
+        return np.concatenate([self.q_static + (self.Q * e).real, (1j * self.omega * self.Q * e).real])
+
+    def amplitude(self, name: str = "U") -> float:
+        """Half peak-to-peak of 'U' or 'delta' (b0 units)."""
+        if name == "U":
+            return float(abs(self.Q[4]))
+        if name == "delta":
+            return float(abs(self.delta_amp))
+        raise ValueError(f"name must be 'U' or 'delta', got {name!r}")
+
+
+def linear_frequency_response(params: GearParams | None, omega: float, model: str = "constant") -> LinearResponse:
+    """Steady response to the transmission-error harmonic in full drive-side contact, kappa = 0.
+
+    Solves M q'' + C q' + K q = e_U F_s + g B_c + Re[g E1 (1 + 2 i xi_m omega) e^{i(phi + phi_e)}]
+    (natural time, phi = omega s) with the matrices of :func:`matrices`. Valid as long as
+    Delta(phi) stays >= B_d (no contact loss); the stiffness harmonic kappa is ignored.
+
+    Args:
+        params: physical parameters (SI), default Table 1.
+        omega: meshing frequency Omega/omega_n (> 0).
+        model: ``"constant"`` or ``"dynamic"`` (K with dB_d/dq).
+    """
+    if not (isinstance(omega, (int, float)) and math.isfinite(omega) and omega > 0):
+        raise ValueError(f"omega must be a finite number > 0, got {omega!r}")
+    p = params or GearParams()
+    d = p.dimensionless()
+    M, C, K = matrices(p, model)
+    g = mesh_vector(p)
+    e_u = np.array([0.0, 0.0, 0.0, 0.0, 1.0])
+    # force k (g.q - B_c - b.q) (b = 0 for the constant model; b.q is inside K)
+    rhs0 = e_u * d["F_s"] + g * d["B_c"]
+    q_s = np.linalg.solve(K, rhs0)
+    f = g * d["E1"] * (1.0 + 2j * p.xi_m * omega) * np.exp(1j * p.phi_e)
+    Z = K - omega**2 * M + 1j * omega * C
+    Q = np.linalg.solve(Z, f)
+    d_static = float(g @ q_s)
+    d_amp = complex(g @ Q - d["E1"] * np.exp(1j * p.phi_e))
+    return LinearResponse(float(omega), q_s, Q, d_static, d_amp)
+
+
+__all__ = [
+    "LinearResponse",
+    "backlash_gradient",
+    "linear_frequency_response",
+    "matrices",
+    "mesh_vector",
+    "modes",
+    "natural_frequencies",
+]

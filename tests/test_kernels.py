@@ -1,0 +1,181 @@
+"""Kernel-level checks: geometry, backlash, accelerations vs the independent reference RHS,
+Newmark step equilibrium, energy conservation and period elongation of undamped linear Newmark,
+and the free-vibration period through a dead zone."""
+
+import math
+
+import numpy as np
+import pytest
+
+from gear_env import GearParams, GearSimulator, default_initial_state
+from gear_env import kernels as K
+from gear_env.linear import matrices, modes, natural_frequencies
+from gear_env.reference import RefConsts, mesh_geometry, rhs
+
+
+def test_backlash_dead_zone():
+    assert K.backlash(1.5, 1.0) == (0.5, 1)
+    assert K.backlash(0.3, 1.0) == (0.0, 0)
+    assert K.backlash(-0.99, 1.0) == (0.0, 0)
+    assert K.backlash(-2.0, 1.0) == (-1.0, -1)
+    assert K.backlash(1.0, 1.0) == (0.0, 1)  # boundary belongs to the contact region
+
+
+@pytest.mark.parametrize("model", ["constant", "dynamic"])
+def test_geometry_matches_reference(model):
+    p = GearParams()
+    c = p.consts
+    code = 0 if model == "constant" else 1
+    k = RefConsts.from_params(p)
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        q = rng.normal(scale=0.5, size=5)
+        out = np.zeros(K.GEO_SIZE)
+        K.geometry(q, c, code, out)
+        psi, bd = mesh_geometry(q, k, model)
+        assert abs(out[0] - psi) < 1e-13
+        assert abs(out[1] - bd) < 1e-11
+        if model == "dynamic":
+            # derivative entries vs central differences of the reference geometry
+            for j in range(4):
+                dq = np.zeros(5)
+                dq[j] = 1e-5
+                bp, bm = mesh_geometry(q + dq, k, model)[1], mesh_geometry(q - dq, k, model)[1]
+                pp, pm = mesh_geometry(q + dq, k, model)[0], mesh_geometry(q - dq, k, model)[0]
+                assert abs(out[2 + j] - (bp - bm) / 2e-5) < 1e-6
+                assert abs(out[7 + j] - (pp - pm) / 2e-5) < 1e-9
+
+
+def test_psi_invariant_along_line_of_action():
+    """MODEL.md sec. 6: a relative centre displacement along the LOA leaves psi at alpha0."""
+    p = GearParams()
+    k = RefConsts.from_params(p)
+    a = p.alpha0
+    for t in (-3.0, -0.5, 0.7, 5.0):
+        q = np.array([t * math.sin(a), -t * math.cos(a), 0.0, 0.0, 0.0])
+        out = np.zeros(K.GEO_SIZE)
+        K.geometry(q, p.consts, 1, out)
+        assert abs(out[0] - a) < 1e-13
+        # moving the pinion by t along g brings the centres closer by t sin(a0):
+        # B_d changes by -t sin(a0) tan(a0) (dB_d/dk = sin a0 tan a0 = 0.1245, MODEL.md sec. 5)
+        assert abs((1.0 - out[1]) / t - math.sin(a) * math.tan(a)) < 1e-3
+        assert abs(mesh_geometry(q, k, "dynamic")[0] - a) < 1e-13
+
+
+@pytest.mark.parametrize("model", ["constant", "dynamic"])
+def test_accel_matches_reference_rhs(model):
+    p = GearParams()
+    code = 0 if model == "constant" else 1
+    k = RefConsts.from_params(p)
+    rng = np.random.default_rng(2)
+    for _ in range(30):
+        x = rng.normal(scale=[0.3] * 4 + [1.5] + [0.3] * 5)
+        phi = rng.uniform(0, 2 * np.pi)
+        w = rng.uniform(0.2, 3.0)
+        ce, se, kk = K.excitation(phi, p.consts)
+        a = np.zeros(5)
+        geo = np.zeros(K.GEO_SIZE)
+        F = K.accel(x[:5], x[5:], ce, se, w, kk, p.consts, code, geo, a)
+        ref = rhs(0.0, np.concatenate([x, [phi]]), w, k, model)
+        assert np.allclose(a, ref[5:10], rtol=1e-12, atol=1e-12)
+        assert np.isfinite(F)
+
+
+@pytest.mark.parametrize("model", ["constant", "dynamic"])
+def test_newmark_step_satisfies_equation_of_motion_at_step_end(model):
+    """Sherman-Morrison Newton: the end-of-step acceleration is the RHS at the end state."""
+    p = GearParams()
+    code = 0 if model == "constant" else 1
+    k = RefConsts.from_params(p)
+    x = default_initial_state(p, model)
+    a = np.zeros(5)
+    work = np.zeros(K.WORK_SIZE)
+    w = 2.8
+    K.start_step(x, a, 0.0, w, p.consts, code, work)
+    n = 32
+    dphi = 2 * np.pi / n
+    for i in range(3 * n):  # crosses contact changes (loss of contact from A10 at omega = 2.8)
+        phi_b = dphi * (i + 1)
+        ce, se, kk = K.excitation(phi_b, p.consts)
+        st, F, region, delta, bd, split = K.newmark_step(
+            x, a, dphi * i, dphi, ce, se, kk, w, w, p.consts, code, work, 30, 1e-13
+        )
+        assert st == K.OK
+        ref = rhs(0.0, np.concatenate([x, [phi_b]]), w, k, model)
+        assert np.allclose(a, ref[5:10], rtol=1e-9, atol=1e-9), (i, a, ref[5:10])
+
+
+def _linear_params(**kw):
+    """Undamped, unforced (kappa = 0, e_m1 = 0) with a large static load: stays in contact."""
+    base = dict(xi_m=0.0, xi_p=0.0, xi_g=0.0, kappa=0.0, e_m1=0.0, T_p=220.0, T_g=300.0)
+    base.update(kw)
+    return GearParams(**base)
+
+
+def test_undamped_linear_newmark_conserves_energy():
+    p = _linear_params()
+    M, _, Kmat = matrices(p)
+    xs = default_initial_state(p, "constant")
+    x0 = xs.copy()
+    x0[4] += 0.05
+    x0[5:] = [0.01, -0.02, 0.015, 0.0, 0.03]
+    sim = GearSimulator(p, "constant", 16, 0.9, x0)
+    tr = sim.record(50)
+    assert np.all(tr["region"] == 1)  # linear: always in drive-side contact
+    dq = tr.states[:, :5] - xs[:5]
+    v = tr.states[:, 5:]
+    energy = 0.5 * np.einsum("ni,ij,nj->n", v, M, v) + 0.5 * np.einsum("ni,ij,nj->n", dq, Kmat, dq)
+    assert energy[0] > 1e-4
+    assert np.max(np.abs(energy - energy[0])) / energy[0] < 1e-11
+
+
+@pytest.mark.parametrize("mode_index", [0, 4])
+@pytest.mark.parametrize("n_steps", [8, 16, 64])
+def test_newmark_period_elongation(mode_index, n_steps):
+    """Average-acceleration Newmark: T_num/T = (w h/2)/atan(w h/2), exactly for a linear mode."""
+    p = _linear_params()
+    w_all, phi = modes(p)
+    wm = w_all[mode_index]
+    shape = phi[:, mode_index]
+    M, _, _ = matrices(p)
+    xs = default_initial_state(p, "constant")
+    x0 = xs.copy()
+    x0[:5] += 0.05 * shape / np.max(np.abs(shape))
+    omega = 0.7
+    sim = GearSimulator(p, "constant", n_steps, omega, x0)
+    tr = sim.record(30)
+    assert np.all(tr["region"] == 1)
+    h = 2 * np.pi / (n_steps * omega)
+    eta = (tr.states[:, :5] - xs[:5]) @ (M @ shape) / (shape @ M @ shape)
+    # exact discrete recurrence eta_{n+1} + eta_{n-1} = 2 cos(w_num h) eta_n
+    cos_wh = np.sum(eta[1:-1] * (eta[2:] + eta[:-2])) / (2 * np.sum(eta[1:-1] ** 2))
+    w_num = math.acos(cos_wh) / h
+    expected = (wm * h / 2) / math.atan(wm * h / 2)
+    assert abs(wm / w_num - expected) < 1e-9 * expected
+    # the other modes stay unexcited (modal decoupling is exact for the linear scheme)
+    resid = tr.states[:, :5] - xs[:5] - np.outer(eta, shape)
+    assert np.max(np.abs(resid)) < 1e-10
+
+
+def _crossing_periods(s, u):
+    i = np.where((u[:-1] < 0) & (u[1:] >= 0))[0]
+    tc = s[i] - u[i] * (s[i + 1] - s[i]) / (u[i + 1] - u[i])
+    return np.diff(tc)
+
+
+@pytest.mark.parametrize("v_gap", [0.5, 0.2])
+def test_free_vibration_period_through_dead_zone(v_gap):
+    """Period = 2 pi / omega_c + 4 B / v_gap (rigid bearings, no damping, no torque, no TE)."""
+    p = GearParams(k_p=1e14, k_g=1e14, xi_m=0.0, xi_p=0.0, xi_g=0.0, kappa=0.0, e_m1=0.0, T_p=0.0, T_g=0.0)
+    wn = natural_frequencies(p)
+    wc = wn[np.argmin(np.abs(wn - 1.0))]  # the torsional (mesh) mode, ~1 with rigid bearings
+    x0 = np.zeros(10)
+    x0[9] = v_gap  # start mid-gap, moving towards the drive side
+    sim = GearSimulator(p, "constant", 4096, 0.2, x0)
+    tr = sim.record(6)
+    reg = tr["region"]
+    assert (reg == 1).any() and (reg == -1).any() and (reg == 0).any()
+    T = _crossing_periods(tr.s, tr["U"])
+    assert len(T) >= 5
+    expected = 2 * np.pi / wc + 4 * 1.0 / v_gap
+    assert np.max(np.abs(T - expected)) / expected < 2e-5
