@@ -63,6 +63,8 @@ from .params import (
 
 kernel = njit(cache=True, error_model="numpy")
 """Decorator of every kernel: compiled once, cached on disk, no Python exceptions inside."""
+kernel_inline = njit(cache=True, error_model="numpy", inline="always")
+"""Small helpers inlined into their callers at numba IR level."""
 
 NDOF = 5
 NSTATE = 10
@@ -120,7 +122,7 @@ N_PC = 14
 DIVERGENCE_LIMIT = 1e6  # |state| beyond this (b0 units) counts as divergence
 
 
-@kernel
+@kernel_inline
 def backlash(delta, bd):
     """Dead-zone function f(Delta; B_d) (eq. 9) and its region (+1 drive, 0 apart, -1 back)."""
     if delta >= bd:
@@ -130,7 +132,7 @@ def backlash(delta, bd):
     return 0.0, 0
 
 
-@kernel
+@kernel_inline
 def geometry_s(q0, q1, q2, q3, c, dynamic, out):
     """Mesh geometry at positions (X_p, Y_p, X_g, Y_g) (eqs. 5-8), without trigonometric calls.
 
@@ -163,7 +165,8 @@ def geometry_s(q0, q1, q2, q3, c, dynamic, out):
     cp = ca * cz - sa * z
     out[12] = sp
     out[13] = cp
-    out[0] = math.atan2(sp, cp)
+    # out[0] (psi itself) is filled by psi_of() only where it is reported: atan2 is not needed
+    # for the forces, which use sin psi and cos psi
     out[1] = c[C_BC] + (ad - A0) * ta
     # dalpha/dA_d = R / (A_d sqrt(A_d^2 - R^2)) = ca / (A_d sa)
     dalpha_dad = ca / (ad * sa)
@@ -189,11 +192,21 @@ GEO_SIZE = 14
 
 @kernel
 def geometry(q, c, dynamic, out):
-    """Array form of :func:`geometry_s`: q holds at least (X_p, Y_p, X_g, Y_g); out has 14 zeros."""
+    """Array form of :func:`geometry_s` (psi included): q holds at least (X_p, Y_p, X_g, Y_g);
+    out has 14 zeros."""
     geometry_s(q[0], q[1], q[2], q[3], c, dynamic, out)
+    out[0] = psi_of(out, c, dynamic)
 
 
-@kernel
+@kernel_inline
+def psi_of(geo, c, dynamic):
+    """Meshing angle psi [rad] from a geometry block filled by :func:`geometry_s`."""
+    if dynamic == 0:
+        return c[C_ALPHA0]
+    return math.atan2(geo[12], geo[13])
+
+
+@kernel_inline
 def mesh_state_s(q0, q1, q2, q3, q4, v0, v1, v2, v3, v4, ce, se, omega, c, dynamic, geo):
     """Delta, Delta', B_d, f(Delta), region at one instant (scalar form, no allocation).
 
@@ -224,7 +237,7 @@ def mesh_state(q, v, ce, se, omega, c, dynamic, geo):
 FRICTION_SHARPNESS = 10.0
 
 
-@kernel
+@kernel_inline
 def friction_factor(ce, se, c):
     """[friction extension, GearParams.friction] mu s(phi), s = tanh(10 sin phi): the tangential
     (off line-of-action) tooth friction force per unit mesh force. ``ce, se`` = cos, sin(phi + phi_e).
@@ -244,6 +257,7 @@ def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
     ``kk`` = 1 + kappa cos(phi + phi_k) is the stiffness factor.
     """
     delta, ddelta, bd, f, region = mesh_state(q, v, ce, se, omega, c, dynamic, geo)
+    geo[0] = psi_of(geo, c, dynamic)
     F = 2.0 * c[C_XI_M] * ddelta + kk * f
     sp = geo[12]
     cp = geo[13]
@@ -260,7 +274,7 @@ def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
     return F
 
 
-@kernel
+@kernel_inline
 def excitation(phi, c):
     """(cos(phi + phi_e), sin(phi + phi_e), 1 + kappa cos(phi + phi_k)) at mesh phase phi."""
     return math.cos(phi + c[C_PHI_E]), math.sin(phi + c[C_PHI_E]), 1.0 + c[C_KAPPA] * math.cos(phi + c[C_PHI_K])
@@ -384,10 +398,12 @@ def _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, geo, max_iter, tol):
         F = xim2 * ddelta + kk * f
         # The backlash force is piecewise linear: for the constant model the update is exact
         # once the region it assumed is the region it lands in. The dynamic model's geometry is
-        # mildly nonlinear and also needs a small update.
+        # mildly nonlinear: its update is accepted when small (tol) or when the position change
+        # of the last Newton update, bh2 * dmax, is below DQ_LINEAR, where the neglected
+        # quadratic term (curvature of B_d(q) ~ 1/A0 ~ 1.5e-4 per b0) is below 1e-12.
         if region == old_region:
             amax = max(abs(a0), abs(a1), abs(a2), abs(a3), abs(a4))
-            if dynamic == 0 or dmax <= tol * (1.0 + amax):
+            if dynamic == 0 or dmax <= tol * (1.0 + amax) or bh2 * dmax <= DQ_LINEAR:
                 x[0] = q0
                 x[1] = q1
                 x[2] = q2
@@ -407,6 +423,9 @@ def _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, geo, max_iter, tol):
     return False, F, region, delta, bd
 
 
+DQ_LINEAR = 1e-4
+"""Dynamic model: a Newton update that moves the positions by less than this (b0) is final."""
+
 MAX_SPLIT_LEVEL = 6
 WORK_SIZE = 80
 
@@ -423,6 +442,7 @@ def newmark_step(x, a, phi_a, dphi, ce, se, kk, w_a, w_b, c, dynamic, work, max_
     h = 2.0 * dphi / (w_a + w_b)
     ok, F, region, delta, bd = _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, work, max_iter, tol)
     if ok:
+        work[0] = psi_of(work, c, dynamic)
         return OK, F, region, delta, bd, 0
     # split into 2^level sub-steps; omega^2 is linear in phase inside the step
     xs = work[60:70]
@@ -451,11 +471,12 @@ def newmark_step(x, a, phi_a, dphi, ce, se, kk, w_a, w_b, c, dynamic, work, max_
                 x[i] = xs[i]
             for i in range(NDOF):
                 a[i] = as_[i]
+            work[0] = psi_of(work, c, dynamic)
             return OK, F, region, delta, bd, 1
     return NEWTON_FAILED, F, region, delta, bd, 1
 
 
-@kernel
+@kernel_inline
 def _diverged(x):
     for i in range(NSTATE):
         xi = x[i]

@@ -1,0 +1,163 @@
+"""Speed of GearSpeed-v0: single env, vector env at 1/8/64 sub-envs, and CartPole-v1 for scale.
+
+Run:  taskset -c 0 python benchmarks/bench_env.py [--seconds 3] [--trade]
+
+Every number is measured in this one run on one core, as steps per second of this process's CPU
+time (robust against other jobs sharing the machine; compile time excluded: a warm-up runs
+first). Actions are uniform random in [-1, 1] (seeded); episodes auto-reset, so the warm-up of
+each new episode is included in the cost. ``--trade`` also times other control intervals and step
+sizes (periods_per_step x steps_per_period).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+
+import numpy as np
+
+
+def _timed(step_fn, seconds: float) -> tuple[int, float]:
+    """Run ``step_fn`` in batches of 10 for ~``seconds`` of CPU time; return (calls, CPU seconds).
+
+    CPU time of this process (``time.process_time``) rather than wall time: on a machine shared
+    with other jobs the wall-clock rate depends on the load, the CPU-time rate is the speed of
+    one core given to this process.
+    """
+    n = 0
+    c0 = time.process_time()
+    c = c0
+    while c - c0 < seconds:
+        for _ in range(10):
+            step_fn()
+        n += 10
+        c = time.process_time()
+    return n, c - c0
+
+
+def bench_single(seconds: float, **cfg) -> float:
+    """Env steps per second of one GearSpeedEnv (random actions, auto-reset)."""
+    from gear_env.env import GearSpeedEnv
+
+    env = GearSpeedEnv(**cfg)
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    acts = rng.uniform(-1, 1, (4096, 1)).astype(np.float32)
+    k = [0]
+
+    def step():
+        _, _, te, tr, _ = env.step(acts[k[0] % 4096])
+        k[0] += 1
+        if te or tr:
+            env.reset()
+
+    for _ in range(5):
+        step()
+    n, dt = _timed(step, seconds)
+    return n / dt
+
+
+def bench_vector(num_envs: int, seconds: float, **cfg) -> float:
+    """Environment steps per second (num_envs x vector steps) of GearSpeedVectorEnv."""
+    from gear_env.vector_env import GearSpeedVectorEnv
+
+    venv = GearSpeedVectorEnv(num_envs, **cfg)
+    venv.reset(seed=0)
+    rng = np.random.default_rng(0)
+    acts = rng.uniform(-1, 1, (64, num_envs, 1)).astype(np.float32)
+    k = [0]
+
+    def step():
+        venv.step(acts[k[0] % 64])
+        k[0] += 1
+
+    for _ in range(3):
+        step()
+    n, dt = _timed(step, seconds)
+    return n * num_envs / dt
+
+
+def bench_kernel(num_envs: int, seconds: float) -> float:
+    """Physics alone: integrate_stats_batch over the default control step, env-steps per second."""
+    from gear_env import kernels as K
+    from gear_env.env_config import GearSpeedConfig
+    from gear_env.env_core import GearSpeedCore
+
+    cfg = GearSpeedConfig()
+    core = GearSpeedCore(cfg, num_envs)
+    rng = np.random.default_rng(0)
+    core.reset_rows(np.arange(num_envs), [rng] * num_envs)
+    X, A, C, codes = core.X.copy(), core.A.copy(), core.C, core.codes
+    w = core.omega.copy()
+    pc = np.zeros((num_envs, cfg.periods_per_step, K.N_PC))
+    st = np.zeros((num_envs, K.N_STATS))
+    status = np.zeros(num_envs, np.int64)
+    el = np.zeros(num_envs)
+
+    def step():
+        K.integrate_stats_batch(
+            X, A, w, w, cfg.periods_per_step, cfg.steps_per_period, C, codes, pc, st, status, el, 12, 1e-10
+        )
+
+    n, dt = _timed(step, seconds)
+    return n * num_envs / dt
+
+
+def bench_cartpole(seconds: float) -> float:
+    import gymnasium as gym
+
+    env = gym.make("CartPole-v1")
+    env.reset(seed=0)
+    space = env.action_space
+    space.seed(0)
+
+    def step():
+        _, _, te, tr, _ = env.step(space.sample())
+        if te or tr:
+            env.reset()
+
+    n, dt = _timed(step, seconds)
+    return n / dt
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=3.0, help="time per measurement (default 3 s)")
+    ap.add_argument("--trade", action="store_true", help="also time other control intervals / step sizes")
+    args = ap.parse_args()
+    s = args.seconds
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover
+        cores = os.cpu_count()
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(
+        f"machine: {platform.machine()}, {cores} usable core(s), Python {platform.python_version()}, "
+        f"load average {load:.2f}; rates are per second of this process's CPU time"
+    )
+    print("default control step: 24 mesh periods x 64 Newmark steps, dynamic backlash")
+    single = bench_single(s)
+    print(f"single env                : {single:9.0f} steps/s")
+    for n in (1, 8, 64):
+        v = bench_vector(n, s)
+        print(f"vector env, {n:2d} sub-envs   : {v:9.0f} env-steps/s")
+    kern = bench_kernel(64, s)
+    print(f"physics kernel alone, 64  : {kern:9.0f} env-steps/s   (vector env at 64 reaches {v / kern:.0%} of it)")
+    cp = bench_cartpole(s)
+    print(f"CartPole-v1 (gym.make)    : {cp:9.0f} steps/s   (GearSpeed single / CartPole = {single / cp:.3f})")
+    if args.trade:
+        print("\ntrade-off (vector env, 8 sub-envs, env-steps/s; single env steps/s):")
+        for pps, nsp, model in ((24, 64, "dynamic"), (16, 64, "dynamic"), (8, 64, "dynamic"), (24, 32, "dynamic"),
+                                (24, 64, "constant"), (24, 128, "dynamic")):  # fmt: skip
+            cfg = dict(periods_per_step=pps, steps_per_period=nsp, model=model)
+            v = bench_vector(8, s, **cfg)
+            one = bench_single(s, **cfg)
+            print(
+                f"  periods_per_step={pps:2d} steps_per_period={nsp:3d} {model:8s}: vector {v:7.0f}  single {one:7.0f}"
+            )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,226 @@
+"""``GearSpeed-v0``: schedule the meshing frequency of a spur gear-bearing pair.
+
+The physics, features and reward live in :mod:`gear_env.env_core` (shared with the vector env);
+the configuration in :mod:`gear_env.env_config`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from .env_config import GearSpeedConfig
+from .env_core import INFO_KEYS, REWARD_KEYS, SENSOR_NAMES, GearSpeedCore
+
+
+def check_action(action: Any, n: int | None = None) -> np.ndarray:
+    """Validate actions in [-1, 1] and return them as float64 (shape (n,) or (1,)).
+
+    Accepts shape (1,) (or a scalar) for one env, (n, 1) or (n,) for n envs. NaN, inf or any other
+    shape raises ``ValueError`` naming the action. Finite values outside [-1, 1] are clipped.
+    """
+    if n is None and type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
+        v = float(action[0])  # fast path: what SB3 and the samplers pass
+        if not math.isfinite(v):
+            raise ValueError(f"action must be finite (no NaN or inf), got {action!r}")
+        return np.array([min(max(v, -1.0), 1.0)])
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"action must be a float array of shape (1,) in [-1, 1], got {action!r}") from None
+    if n is None:
+        if a.shape not in ((1,), ()):
+            raise ValueError(f"action must have shape (1,), got shape {a.shape}: {action!r}")
+        a = a.reshape(1)
+    else:
+        if a.shape not in ((n, 1), (n,)):
+            raise ValueError(f"actions must have shape ({n}, 1), got shape {a.shape}")
+        a = a.reshape(n)
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"action must be finite (no NaN or inf), got {action!r}")
+    return np.clip(a, -1.0, 1.0)
+
+
+class GearSpeedEnv(gym.Env):
+    """Schedule the meshing frequency of a spur gear-bearing pair with backlash.
+
+    ## Description
+
+    A pinion and a gear on elastic bearings mesh with a time-varying stiffness, a static
+    transmission error and backlash (constant or centre-distance dependent "dynamic" backlash); see
+    docs/MODEL.md. The agent sets the meshing frequency omega = Omega/omega_n (proportional to
+    speed, hence throughput at constant torque) like a motor drive: each step lasts
+    ``periods_per_step`` mesh periods (default 24) during which omega ramps linearly in time to the
+    new value, at most ``max_domega`` (default 0.05) per step. The simulator state carries over
+    between steps, so hysteresis and coexisting attractors are part of the task. Over
+    omega in [0.1, 3] the default gear pair is period-1 in ~[0.1, 0.3] and [0.6, 1.6], non-periodic
+    (period doubling, torus, chaos) in ~[0.35, 0.55] and [1.65, 2.55], and period-1 but impacting
+    (73 % contact loss) in [2.6, 3]. The agent must find the fast, quiet window from the sensors.
+
+    ## Action Space
+
+    ``Box(-1, 1, (1,), float32)``. ``action_mode="delta"`` (default): new omega = omega +
+    a * max_domega. ``action_mode="target"``: target omega = omega_min + (a + 1)/2 (omega_max -
+    omega_min), approached at most max_domega per step. Always clipped to [omega_min, omega_max].
+    NaN/inf or a wrong shape raise ``ValueError``.
+
+    ## Observation Space
+
+    ``Box(float32)`` of sensor-like features of the last step (``observation="sensors"``):
+
+    | Num | Observation        | Meaning                                                              | Min | Max |
+    |-----|--------------------|----------------------------------------------------------------------|-----|-----|
+    | 0   | omega              | 2 (omega - omega_min)/(omega_max - omega_min) - 1 (end of step)      | -1  | 1   |
+    | 1   | domega             | change of omega in the step / max_domega                             | -1  | 1   |
+    | 2   | force_rms          | log1p(RMS of the dynamic mesh force / F_s)                           | 0   | 10  |
+    | 3   | force_peak         | log1p(peak mesh force / F_s)                                         | 0   | 10  |
+    | 4   | translation_rms    | log1p(dynamic RMS bearing deflection / static deflection)            | 0   | 10  |
+    | 5   | defect             | log1p(periodicity defect / defect_scale) (Poincare section)          | 0   | 10  |
+    | 6   | period             | detected period n/8 (n = 1..8), 0 if not periodic                    | 0   | 1   |
+    | 7   | contact_loss       | fraction of time the teeth were apart or in back contact             | 0   | 1   |
+    | 8   | drive_impacts      | drive-side re-impacts per mesh period                                | 0   | 10  |
+    | 9   | back_impacts       | back-side impacts per mesh period                                    | 0   | 10  |
+    | 10  | demand (optional)  | required omega of the next step, scaled like omega (only if demand)  | -1  | 1   |
+    | +10 | state (optional)   | ``observation="full"``: X_p, Y_p, X_g, Y_g, U and rates [b0]       | -1e6| 1e6 |
+
+    F_s is the static mesh force. The periodicity defect is ``min_{p=1..8} max_k |P_{k+p} - P_k|``
+    over the last ``poincare_window`` (16) Poincare samples P_k = (Delta, dU/omega) [b0], one per
+    mesh period: ~0 for period-p motion, large for quasi-periodic or chaotic motion.
+
+    ## Rewards
+
+    Per step, with c = clip(defect / defect_scale, 0, 1) (defect_scale = 0.02 b0) and F_peak the
+    largest mesh force of the step::
+
+        r =   w_throughput * omega_mean / omega_max                  (reward_throughput)
+            - w_chaos * c                                            (reward_chaos)
+            - w_contact * contact_loss_fraction                      (reward_contact)
+            - w_impact * (drive re-impacts + 5 back impacts) / period (reward_impact)
+            - w_vibration * max(0, F_peak/F_s - 1) / 10              (reward_vibration)
+            - w_rate * (domega / max_domega)^2                       (reward_rate)
+            - w_demand * max(0, demand - omega_mean) / omega_max     (reward_demand, if a demand is set)
+
+    Defaults: w_throughput=1, w_chaos=1, w_contact=0.5, w_impact=0.2, w_vibration=0.5, w_rate=0.02,
+    w_demand=2. A diverging step gives ``-divergence_penalty`` (10) and all other terms 0
+    (reward_divergence). Each term is in ``info``; they add up to the reward. With the default
+    model the best constant speed is omega ~1.2 (docs/ENVIRONMENT.md has the steady reward curve).
+
+    ## Starting State
+
+    The static equilibrium (drive-side contact), then ``warmup_periods`` (48) mesh periods at the
+    initial omega, drawn uniformly from ``initial_omega`` (default [omega_min, omega_max]; the
+    ``reset(options={"omega": w})`` option fixes it). The first observation describes the last
+    ``periods_per_step`` warm-up periods.
+
+    ## Episode End
+
+    Truncation after ``max_steps`` (200) steps. Termination only if the integration diverges
+    (non-finite state or Newton failure): reward -divergence_penalty, ``info["diverged"] = True``,
+    the observation repeats the last finite one.
+
+    ## Info
+
+    The same keys on every step (and on reset): the reward terms, ``omega``, ``omega_mean``,
+    ``domega``, ``demand``, the features (``force_rms``, ``force_peak`` relative to F_s,
+    ``translation_rms`` [b0], ``defect`` [b0], ``period``, ``chaos`` (c), ``contact_loss``,
+    ``drive_impacts``, ``back_impacts`` (counts in the step)), ``nonperiodic`` (c > 0.5),
+    ``step_time_s`` (physical seconds of the step), ``diverged``, and running episode totals
+    ``episode_*`` (return, steps, throughput = mean omega, physical time [s] in periodic and
+    non-periodic motion, impacts, contact-loss fraction), complete on the final step.
+
+    ## Arguments
+
+    ``gym.make("GearSpeed-v0", **settings)`` or ``GearSpeedEnv(config=None, render_mode=None,
+    **settings)``; the settings are the fields of :class:`GearSpeedConfig` (e.g. ``params``,
+    ``model``, ``periods_per_step``, ``max_domega``, ``action_mode``, ``demand``,
+    ``randomize_params``, reward weights). Unknown settings raise ``ValueError``.
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
+
+    def __init__(self, config: GearSpeedConfig | dict | None = None, render_mode: str | None = None, **kwargs: Any):
+        super().__init__()
+        self.config = GearSpeedConfig.from_kwargs(config, **kwargs)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self._core = GearSpeedCore(self.config, 1, single=True)
+        lo, hi = self._core.observation_bounds()
+        self.observation_space = spaces.Box(lo, hi, dtype=np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
+        self.obs_names = self._core.obs_names()
+        self._needs_reset = True
+        self._history: list[tuple[float, float, float, float]] = []  # (omega, chaos, contact loss, force peak)
+        self._renderer: Any = None
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start an episode; ``options={"omega": w}`` fixes the initial meshing frequency."""
+        super().reset(seed=seed)
+        self._core.reset_rows(np.array([0]), [self.np_random], options)
+        self._needs_reset = False
+        info = self._core.info_row(0)
+        self._history = [(info["omega"], info["chaos"], info["contact_loss"], info["force_peak"])]
+        if self.render_mode == "human":
+            self.render()
+        return self._core.obs[0].copy(), info
+
+    def step(self, action: Any):
+        """Advance one control step (``periods_per_step`` mesh periods)."""
+        if self._needs_reset:
+            raise RuntimeError("call reset() before step() (and after an episode ended)")
+        a = check_action(action)
+        reward, terminated, truncated = self._core.step_rows(np.array([0]), a)
+        info = self._core.info_row(0)
+        self._history.append((info["omega"], info["chaos"], info["contact_loss"], info["force_peak"]))
+        term, trunc = bool(terminated[0]), bool(truncated[0])
+        if term or trunc:
+            self._needs_reset = True
+        if self.render_mode == "human":
+            self.render()
+        return self._core.obs[0].copy(), float(reward[0]), term, trunc, info
+
+    def render(self):
+        """``rgb_array``: an (H, W, 3) uint8 frame; ``human``: draw in a matplotlib window."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
+            return None
+        from .plots.env import EnvRenderer
+
+        if self._renderer is None:
+            self._renderer = EnvRenderer(self.config, human=self.render_mode == "human")
+        return self._renderer.draw(
+            np.array(self._history, float).reshape(-1, 4), self._core.hist[0].copy(), self.render_mode == "rgb_array"
+        )
+
+    def close(self):
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # ------------------------------------------------------------------ extras
+    @property
+    def omega(self) -> float:
+        """Current meshing frequency Omega/omega_n."""
+        return float(self._core.omega[0])
+
+    @property
+    def state(self) -> np.ndarray:
+        """Copy of the hidden simulator state (10 values, b0 units)."""
+        return self._core.X[0].copy()
+
+    def __getstate__(self):
+        d = self.__dict__.copy()
+        d["_renderer"] = None
+        return d
+
+
+__all__ = ["GearSpeedConfig", "GearSpeedEnv", "INFO_KEYS", "REWARD_KEYS", "SENSOR_NAMES", "check_action"]

@@ -1,0 +1,234 @@
+"""Native vector form of ``GearSpeed-v0`` and a stable-baselines3 ``VecEnv`` adapter.
+
+* :class:`GearSpeedVectorEnv` - a ``gymnasium.vector.VectorEnv`` that advances all sub-envs in one
+  ``kernels.integrate_stats_batch`` call per step (``gym.make_vec("GearSpeed-v0", num_envs=N)``).
+  Sub-env ``i`` has its own random generator, seeded with ``seed + i`` by ``reset(seed=seed)``, so
+  it reproduces a single :class:`~gear_env.env.GearSpeedEnv` reset with ``seed + i`` exactly.
+* ``SB3VecEnvAdapter`` (in :mod:`gear_env.sb3_adapter`, also importable from here) - presents the
+  same batch engine to stable-baselines3 (which accepts only its own ``VecEnv``): auto-reset inside
+  ``step_wait``, ``terminal_observation`` and ``TimeLimit.truncated`` in the infos.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from .env import check_action
+from .env_config import GearSpeedConfig
+from .env_core import GearSpeedCore
+
+
+def _seed_generators(num_envs: int, seed: int | Sequence[int | None] | None) -> list[np.random.Generator]:
+    """Per-sub-env generators: ``seed + i`` for an int seed, entries of a list, or fresh entropy."""
+    if seed is None:
+        ss = np.random.SeedSequence()
+        return [np.random.default_rng(s) for s in ss.spawn(num_envs)]
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+        return [gym.utils.seeding.np_random(int(seed) + i)[0] for i in range(num_envs)]
+    seeds = list(seed)
+    if len(seeds) != num_envs:
+        raise ValueError(f"seed must be an int, None or a list of {num_envs} seeds, got {seed!r}")
+    return [gym.utils.seeding.np_random(s)[0] for s in seeds]
+
+
+class GearSpeedVectorEnv(VectorEnv):
+    """``num_envs`` independent GearSpeed environments stepped in one numba call.
+
+    Spaces, reward, info and episode rules are those of :class:`gear_env.env.GearSpeedEnv` (see its
+    docstring); observations are stacked (num_envs, n_obs), actions (num_envs, 1).
+
+    Args:
+        num_envs: number of sub-environments (>= 1).
+        config: :class:`GearSpeedConfig` or dict; keyword settings override it.
+        autoreset_mode: ``AutoresetMode.NEXT_STEP`` (default; the step after an episode ends
+            resets that sub-env and returns its first observation with reward 0),
+            ``SAME_STEP`` (reset at once; the final observation/info are in ``info["final_obs"]``
+            / ``info["final_info"]``) or ``DISABLED`` (call ``reset(options={"reset_mask": m})``).
+        render_mode: ``"rgb_array"`` (frame of sub-env 0) or None.
+
+    ``info`` is a dict of arrays (num_envs,) with the same keys as the single env plus Gymnasium's
+    ``_key`` masks (all True: every key is present for every sub-env on every step).
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        config: GearSpeedConfig | dict | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        render_mode: str | None = None,
+        max_episode_steps: int | None = None,
+        **kwargs: Any,
+    ):
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        if max_episode_steps is not None:  # gym.make_vec passes the spec's limit; it maps onto max_steps
+            kwargs.setdefault("max_steps", max_episode_steps)
+        self.config = GearSpeedConfig.from_kwargs(config, **kwargs)
+        try:
+            mode = AutoresetMode(autoreset_mode) if isinstance(autoreset_mode, str) else autoreset_mode
+        except ValueError:
+            mode = None
+        if not isinstance(mode, AutoresetMode):
+            raise ValueError(
+                f"autoreset_mode must be one of {[m.value for m in AutoresetMode]}, got {autoreset_mode!r}"
+            )
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be 'rgb_array' or None, got {render_mode!r}")
+        self.metadata = {**type(self).metadata, "autoreset_mode": mode}
+        self.autoreset_mode = mode
+        self.render_mode = render_mode
+        self.num_envs = int(num_envs)
+        self._core = GearSpeedCore(self.config, self.num_envs)
+        lo, hi = self._core.observation_bounds()
+        self.single_observation_space = spaces.Box(lo, hi, dtype=np.float32)
+        self.single_action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.obs_names = self._core.obs_names()
+        self._rngs = _seed_generators(self.num_envs, None)
+        self._autoreset = np.zeros(self.num_envs, bool)
+        self._needs_reset = True
+        self._renderer: Any = None
+        self._history: list[tuple[float, float, float, float]] = []
+
+    # ------------------------------------------------------------------ helpers
+    def _info(self, rows: np.ndarray | None = None) -> dict[str, Any]:
+        info: dict[str, Any] = {}
+        n = self.num_envs
+        mask = np.ones(n, bool) if rows is None else np.isin(np.arange(n), rows)
+        for k, v in self._core.info.items():
+            info[k] = v
+            info["_" + k] = mask.copy()
+        return info
+
+    def _reset_rows(self, rows: np.ndarray, options: dict | None = None) -> None:
+        self._core.reset_rows(rows, [self._rngs[r] for r in rows], options)
+
+    def _track(self) -> None:
+        """Remember omega, chaos, contact loss and peak force of sub-env 0 (for render)."""
+        if self.render_mode is None:
+            return
+        i = self._core.info_row(0)
+        self._history.append((i["omega"], i["chaos"], i["contact_loss"], i["force_peak"]))
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
+        """Reset all sub-envs (or those in ``options["reset_mask"]``); ``seed`` -> ``seed + i``."""
+        if seed is not None:
+            self._rngs = _seed_generators(self.num_envs, seed)
+            self._np_random, self._np_random_seed = gym.utils.seeding.np_random(
+                seed if isinstance(seed, (int, np.integer)) else None
+            )
+        opts = dict(options or {})
+        mask = opts.pop("reset_mask", None)
+        if mask is None:
+            rows = np.arange(self.num_envs)
+        else:
+            m = np.asarray(mask, bool)
+            if m.shape != (self.num_envs,):
+                raise ValueError(
+                    f"options['reset_mask'] must be a bool array of shape ({self.num_envs},), got {m.shape}"
+                )
+            rows = np.flatnonzero(m)
+        self._reset_rows(rows, opts or None)
+        self._autoreset[rows] = False
+        self._needs_reset = False
+        if 0 in rows:
+            self._history = []
+            self._track()
+        return self._core.obs.copy(), self._info()
+
+    def step(self, actions: Any):
+        """Step every sub-env; returns batched (obs, rewards, terminations, truncations, info)."""
+        if self._needs_reset:
+            raise RuntimeError("call reset() before step()")
+        a = check_action(actions, self.num_envs)
+        n = self.num_envs
+        rewards = np.zeros(n)
+        terminated = np.zeros(n, bool)
+        truncated = np.zeros(n, bool)
+        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
+            resetting = np.flatnonzero(self._autoreset)
+            stepping = np.flatnonzero(~self._autoreset)
+        else:
+            resetting = np.zeros(0, np.int64)
+            stepping = np.arange(n)
+            if self.autoreset_mode == AutoresetMode.DISABLED and self._autoreset.any():
+                raise RuntimeError(
+                    f"sub-env(s) {np.flatnonzero(self._autoreset).tolist()} finished; with autoreset DISABLED call "
+                    "reset(options={'reset_mask': mask}) first"
+                )
+        if len(stepping):
+            r, te, tr = self._core.step_rows(stepping, a[stepping])
+            rewards[stepping] = r
+            terminated[stepping] = te
+            truncated[stepping] = tr
+        if len(resetting):
+            self._reset_rows(resetting)
+        done = terminated | truncated
+        if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
+            rows = np.flatnonzero(done)
+            final_obs = self._core.obs.copy()
+            final_info = self._info(rows)
+            self._reset_rows(rows)
+            info = self._info()
+            fo = np.empty(n, dtype=object)
+            for i in rows:
+                fo[i] = final_obs[i]
+            info["final_obs"] = fo
+            info["_final_obs"] = done.copy()
+            info["final_info"] = final_info
+            info["_final_info"] = done.copy()
+        else:
+            info = self._info()
+            if self.autoreset_mode == AutoresetMode.SAME_STEP:
+                info["final_obs"] = np.empty(n, dtype=object)
+                info["_final_obs"] = np.zeros(n, bool)
+                info["final_info"] = {}
+                info["_final_info"] = np.zeros(n, bool)
+        self._autoreset = done
+        self._track()
+        return self._core.obs.copy(), rewards, terminated, truncated, info
+
+    def render(self):
+        """An (H, W, 3) uint8 frame of sub-env 0 (``render_mode="rgb_array"``)."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without render_mode='rgb_array'")
+            return None
+        from .plots.env import EnvRenderer
+
+        if self._renderer is None:
+            self._renderer = EnvRenderer(self.config, human=False)
+        return self._renderer.draw(np.array(self._history, float).reshape(-1, 4), self._core.hist[0].copy(), True)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def __getstate__(self):
+        d = self.__dict__.copy()
+        d["_renderer"] = None
+        return d
+
+
+def __getattr__(name: str) -> Any:
+    """Lazy access to :class:`gear_env.sb3_adapter.SB3VecEnvAdapter` (imports stable-baselines3 and
+    torch only when asked for)."""
+    if name == "SB3VecEnvAdapter":
+        from .sb3_adapter import SB3VecEnvAdapter
+
+        return SB3VecEnvAdapter
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["GearSpeedVectorEnv"]
