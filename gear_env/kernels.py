@@ -153,14 +153,16 @@ def geometry_s(q0, q1, q2, q3, c, dynamic, out):
     d1 = A0 - q0 + q2
     d2 = q1 - q3
     ad = math.sqrt(d1 * d1 + d2 * d2)
-    ca = R / ad
+    iad = 1.0 / ad  # one division, reused below
+    ca = R * iad
     s2 = 1.0 - ca * ca
     if s2 < 1e-30:
         s2 = 1e-30
     sa = math.sqrt(s2)
-    ta = sa / ca
-    cz = d1 / ad
-    z = -d2 / ad
+    ica = ad / R
+    ta = sa * ica
+    cz = d1 * iad
+    z = -d2 * iad
     sp = sa * cz + ca * z
     cp = ca * cz - sa * z
     out[12] = sp
@@ -169,19 +171,20 @@ def geometry_s(q0, q1, q2, q3, c, dynamic, out):
     # for the forces, which use sin psi and cos psi
     out[1] = c[C_BC] + (ad - A0) * ta
     # dalpha/dA_d = R / (A_d sqrt(A_d^2 - R^2)) = ca / (A_d sa)
-    dalpha_dad = ca / (ad * sa)
+    dalpha_dad = ca * iad / sa
     db_dad = ta + (ad - A0) * (1.0 + ta * ta) * dalpha_dad
-    dad0 = -d1 / ad  # dA_d/dX_p (= -dA_d/dX_g)
-    dad1 = d2 / ad  # dA_d/dY_p (= -dA_d/dY_g)
+    dad0 = -cz  # dA_d/dX_p (= -dA_d/dX_g)
+    dad1 = -z  # dA_d/dY_p (= -dA_d/dY_g)
     out[2] = db_dad * dad0
     out[3] = db_dad * dad1
     out[4] = -out[2]
     out[5] = -out[3]
     out[6] = 0.0
     # dpsi/dq = dalpha/dA dA/dq + (dz/dq) / cz,  dz = -dd2/A_d + d2 dA_d / A_d^2
-    ad2 = ad * ad
-    out[7] = dalpha_dad * dad0 + (d2 * dad0 / ad2) / cz
-    out[8] = dalpha_dad * dad1 + (-1.0 / ad + d2 * dad1 / ad2) / cz
+    icz = 1.0 / cz
+    d2a = d2 * iad * iad
+    out[7] = dalpha_dad * dad0 + d2a * dad0 * icz
+    out[8] = dalpha_dad * dad1 + (d2a * dad1 - iad) * icz
     out[9] = -out[7]
     out[10] = -out[8]
     out[11] = 0.0
@@ -316,10 +319,12 @@ def _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, geo, max_iter, tol):
     a2 = a[2]
     a3 = a[3]
     a4 = a[4]
-    dd0 = 1.0 + gh * c0 + bh2 * k0
-    dd2 = 1.0 + gh * c2 + bh2 * k2
-    ext1 = -c[C_GP] / ep
-    ext3 = -c[C_GG] / eg
+    idd0 = 1.0 / (1.0 + gh * c0 + bh2 * k0)  # inverse diagonal of the Newton matrix
+    idd2 = 1.0 / (1.0 + gh * c2 + bh2 * k2)
+    iep = 1.0 / ep
+    ieg = 1.0 / eg
+    ext1 = -c[C_GP] * iep
+    ext3 = -c[C_GG] * ieg
     fr = friction_factor(ce, se, c)  # [friction extension] tilts the force off the LOA; 0 by default
     xim2 = 2.0 * c[C_XI_M]
     cd = gh * xim2
@@ -338,10 +343,10 @@ def _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, geo, max_iter, tol):
     for _it in range(max_iter):
         sp = geo[12]
         cp = geo[13]
-        w0 = (sp - fr * cp) / ep
-        w1 = -(cp + fr * sp) / ep
-        w2 = -(sp - fr * cp) / eg
-        w3 = (cp + fr * sp) / eg
+        w0 = (sp - fr * cp) * iep
+        w1 = -(cp + fr * sp) * iep
+        w2 = -(sp - fr * cp) * ieg
+        w3 = (cp + fr * sp) * ieg
         # residual r = a + C v + K q + w F - ext
         r0 = a0 + c0 * v0 + k0 * q0 + w0 * F
         r1 = a1 + c0 * v1 + k0 * q1 + w1 * F - ext1
@@ -358,15 +363,15 @@ def _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, geo, max_iter, tol):
         u3 = cg * cp - rr * geo[5]
         u4 = cg
         # Sherman-Morrison: (D + w u^T) d = -r, D = diag(dd0, dd0, dd2, dd2, 1)
-        y0 = -r0 / dd0
-        y1 = -r1 / dd0
-        y2 = -r2 / dd2
-        y3 = -r3 / dd2
+        y0 = -r0 * idd0
+        y1 = -r1 * idd0
+        y2 = -r2 * idd2
+        y3 = -r3 * idd2
         y4 = -r4
-        z0 = w0 / dd0
-        z1 = w1 / dd0
-        z2 = w2 / dd2
-        z3 = w3 / dd2
+        z0 = w0 * idd0
+        z1 = w1 * idd0
+        z2 = w2 * idd2
+        z3 = w3 * idd2
         fac = (u0 * y0 + u1 * y1 + u2 * y2 + u3 * y3 + u4 * y4) / (1.0 + u0 * z0 + u1 * z1 + u2 * z2 + u3 * z3 + u4)
         e0 = y0 - fac * z0
         e1 = y1 - fac * z1
