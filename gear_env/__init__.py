@@ -1,5 +1,6 @@
 """gear-env: nonlinear dynamics of a spur gear-bearing pair and a Gymnasium speed-scheduling env."""
 
+from . import _numba_cache  # noqa: F401  (must run before any kernel module is imported)
 from .errors import SimulationDivergedError
 from .params import GearParams
 from .simulator import (

@@ -1,0 +1,60 @@
+"""Where numba keeps the compiled kernels of gear-env.
+
+numba's on-disk cache is keyed on each function's own source file, not on the files it calls or
+the module constants it bakes in: a cached function in ``env_kernels.py`` would keep old code
+after ``kernels.py`` changed. This module points numba's cache at a folder named after a hash of
+every file that holds compiled code, so a changed package never meets a stale cache, and so the
+cache works when the package folder is read-only:
+
+* ``$NUMBA_CACHE_DIR`` set: ``$NUMBA_CACHE_DIR/gear-env-<hash>``;
+* otherwise ``$GEAR_ENV_CACHE/numba-<hash>`` (default ``~/.cache/gear-env``), falling back to
+  numba's own choice (``__pycache__`` beside the sources) if that folder cannot be created.
+
+Several processes compiling into the same folder at once is safe: numba writes each cache file
+to a temporary name and renames it (tested in tests/test_reliability.py).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+# files whose njit code is cached (their constants and callees included)
+_SOURCES = ("params.py", "kernels.py", "env_kernels.py", "analysis/testsystems.py")
+
+
+def source_hash() -> str:
+    """Short SHA-256 of the package files that hold compiled code."""
+    h = hashlib.sha256()
+    here = Path(__file__).parent
+    for name in _SOURCES:
+        p = here / name
+        if p.exists():
+            h.update(name.encode())
+            h.update(p.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def configure() -> str | None:
+    """Point numba's cache at a folder versioned by :func:`source_hash`; return it (or None)."""
+    from numba.core import config
+
+    tag = source_hash()
+    user = os.environ.get("NUMBA_CACHE_DIR")
+    if user:
+        target = Path(user) / f"gear-env-{tag}"
+    else:
+        base = Path(os.environ.get("GEAR_ENV_CACHE", Path.home() / ".cache" / "gear-env"))
+        target = base / f"numba-{tag}"
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        if not os.access(target, os.W_OK):
+            return None
+    except OSError:
+        return None
+    config.CACHE_DIR = str(target)
+    return str(target)
+
+
+CACHE_DIR = configure()

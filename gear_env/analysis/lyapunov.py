@@ -1,0 +1,192 @@
+"""Largest Lyapunov exponent from two nearby trajectories renormalised every mesh period.
+
+Method (Benettin et al. 1980): a reference trajectory and a copy displaced by ``d0`` (Euclidean
+norm in the 10-dimensional state space, b0 units and b0 per unit natural time) are advanced one
+mesh period at a time with the simulator's own Newmark kernel (``kernels.integrate_stats_batch``); after
+each period the separation ``d`` is measured, ``log(d/d0)`` accumulated, and the copy is pulled back
+to distance ``d0`` along the current separation direction. The first ``skip`` periods only align
+the separation with the most unstable direction and are not counted.
+
+Units: the exponent is **per unit natural time** s = omega_n t (multiply by 2 pi/omega to get the
+growth per mesh period, or by omega_n for 1/s). A linear oscillator with damping ratio xi gives
+-xi in these units.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .. import kernels as K
+from ..errors import SimulationDivergedError
+from ..params import GearParams, model_code
+from ..simulator import NEWTON_MAX_ITER, NEWTON_TOL, _check_state, check_count, check_omega, check_steps
+
+DEFAULT_D0 = 1e-8
+"""Default initial separation (b0 units): large against the Newton tolerance, small against b0."""
+
+
+def _unit_direction(n: int) -> np.ndarray:
+    """Fixed initial separation direction (1, 1.1, 1.2, ...)/norm: deterministic results."""
+    v = 1.0 + 0.1 * np.arange(n, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+def default_skip(periods: int) -> int:
+    """Periods used only to align the separation vector: 10 % of the record, at most 20."""
+    return min(20, periods // 10)
+
+
+def largest_lyapunov(
+    omega: float,
+    model: str = "dynamic",
+    params: GearParams | None = None,
+    state: Any = None,
+    periods: int = 200,
+    steps_per_period: int = 128,
+    d0: float = DEFAULT_D0,
+    transient: int = 0,
+) -> float:
+    """Largest Lyapunov exponent of the gear model at meshing frequency ``omega``.
+
+    Args:
+        omega: meshing frequency Omega/omega_n (> 0).
+        model: ``"constant"`` or ``"dynamic"`` backlash.
+        params: physical parameters (default Table 1).
+        state: start state (10 values, b0 units), or None for the static equilibrium; it should
+            already lie on the attractor (or pass ``transient``).
+        periods: mesh periods over which separations are averaged (renormalised every period).
+        steps_per_period: Newmark steps per mesh period.
+        d0: separation (state-space Euclidean norm, b0 units) restored every period.
+        transient: mesh periods simulated first and discarded.
+
+    Returns:
+        The exponent **per unit natural time** (omega_n t); ``* 2 pi / omega`` gives it per mesh
+        period. Positive: chaos; about zero: quasi-periodic; negative: a stable periodic orbit.
+
+    Raises:
+        ValueError: invalid arguments; SimulationDivergedError: the trajectory blew up.
+    """
+    from ..simulator import GearSimulator
+
+    w = check_omega(omega)
+    n = check_count(periods, "periods", 2)
+    nsteps = check_steps(steps_per_period)
+    tr = check_count(transient, "transient", 0)
+    if not (isinstance(d0, (int, float)) and 0.0 < float(d0) < 1e-2 and math.isfinite(d0)):
+        raise ValueError(f"d0 must be a finite separation in (0, 1e-2) b0, got {d0!r}")
+    params = params if params is not None else GearParams()
+    sim = GearSimulator(params, model, nsteps, w, None if state is None else _check_state(state))
+    if tr:
+        sim.advance(tr)
+    x = sim.state
+    lam = lyapunov_record(x, w, n, nsteps, params.consts, model_code(model), float(d0))[0]
+    return lam
+
+
+_ADD = np.array([K.ST_TIME, K.ST_SEP_TIME, K.ST_BACK_TIME, K.ST_BACK_IMPACTS, K.ST_DRIVE_IMPACTS, K.ST_F_SUM,
+                 K.ST_F_SQ, K.ST_TR_SQ, K.ST_STEPS, K.ST_SPLITS])  # fmt: skip
+_MAX = np.array([K.ST_F_MAX, K.ST_U_MAX, K.ST_D_MAX, K.ST_BD_MAX, K.ST_PSI_MAX, K.ST_TR_MAX])
+_MIN = np.array([K.ST_F_MIN, K.ST_U_MIN, K.ST_D_MIN, K.ST_BD_MIN, K.ST_PSI_MIN])
+
+
+def merge_stats(per_period: np.ndarray) -> np.ndarray:
+    """Interval statistics of consecutive periods (rows of ``ST_*`` vectors) combined."""
+    out = np.empty(K.N_STATS)
+    out[_ADD] = per_period[:, _ADD].sum(axis=0)
+    out[_MAX] = per_period[:, _MAX].max(axis=0)
+    out[_MIN] = per_period[:, _MIN].min(axis=0)
+    return out
+
+
+def lyapunov_record(
+    x: np.ndarray, omega: float, periods: int, steps_per_period: int, consts: np.ndarray, code: int, d0: float
+) -> tuple[float, np.ndarray, np.ndarray, float, float, float]:
+    """Record ``periods`` mesh periods from state ``x`` (updated in place) at constant ``omega``
+    while a copy displaced by ``d0`` runs alongside and is renormalised every period.
+
+    Both copies advance together, one mesh period per call of the simulator's batch kernel
+    (``kernels.integrate_stats_batch``), so this always uses the current kernels (a numba
+    function compiled here and calling into kernels.py would keep a stale on-disk cache when
+    kernels.py changes).
+
+    Returns (exponent per unit natural time, Poincare samples (periods, 14), interval stats,
+    natural time elapsed, sum of log(d/d0), natural time it was averaged over; the last two let
+    a caller pool several windows). Raises SimulationDivergedError on blow-up.
+    """
+    skip = default_skip(periods)
+    X = np.empty((2, K.NSTATE))
+    X[0] = x
+    u = _unit_direction(K.NSTATE)
+    X[1] = x + d0 * u
+    A = np.zeros((2, K.NDOF))
+    W = np.full(2, float(omega))
+    C = np.ascontiguousarray(np.broadcast_to(consts, (2, len(consts))))
+    dyn = np.full(2, code, dtype=np.int64)
+    pcb = np.empty((2, 1, K.N_PC))
+    stb = np.empty((2, K.N_STATS))
+    status = np.zeros(2, dtype=np.int64)
+    elapsed = np.zeros(2)
+    pc = np.empty((periods, K.N_PC))
+    st_all = np.empty((periods, K.N_STATS))
+    sum_log = 0.0
+    t_count = 0.0
+    t_all = 0.0
+    batch = K.integrate_stats_batch
+    for p in range(periods):
+        batch(X, A, W, W, 1, steps_per_period, C, dyn, pcb, stb, status, elapsed, NEWTON_MAX_ITER, NEWTON_TOL)
+        if status[0] != K.OK or status[1] != K.OK:
+            reason = f"integration failed (status {status.max()}) in the Lyapunov record"
+            raise SimulationDivergedError(p, reason, omega)
+        pc[p] = pcb[0, 0]
+        st_all[p] = stb[0]
+        s = float(elapsed[0])
+        t_all += s
+        dv = X[1] - X[0]
+        d = math.sqrt(float(dv @ dv))
+        if p >= skip:
+            sum_log += math.log(max(d, 1e-300) / d0)
+            t_count += s
+        if d > 0.0 and math.isfinite(d):
+            X[1] = X[0] + (d0 / d) * dv
+        else:  # separation lost below round-off: restart along the fixed direction
+            X[1] = X[0] + d0 * u
+    x[:] = X[0]
+    lam = sum_log / t_count if t_count > 0 else 0.0
+    return float(lam), pc, merge_stats(st_all), float(t_all), float(sum_log), float(t_count)
+
+
+def lyapunov_map(
+    advance: Callable[[np.ndarray], float],
+    x0: Any,
+    periods: int,
+    d0: float = DEFAULT_D0,
+    skip: int | None = None,
+) -> float:
+    """Generic two-trajectory estimate for any system given by a one-period map.
+
+    ``advance(x)`` must integrate the state ``x`` (1-D float array, modified in place) over one
+    forcing period and return the elapsed time. Returns the exponent per unit of that time.
+    Used for the test systems (:mod:`gear_env.analysis.testsystems`) with known exponents.
+    """
+    x = np.array(x0, dtype=float)
+    n = check_count(periods, "periods", 2)
+    skip = default_skip(n) if skip is None else int(skip)
+    u = _unit_direction(x.size)
+    xp = x + d0 * u
+    sum_log = 0.0
+    t_count = 0.0
+    for p in range(n):
+        t = advance(x)
+        advance(xp)
+        d = float(np.linalg.norm(xp - x))
+        if not math.isfinite(d):
+            raise ValueError("lyapunov_map: the trajectory became non-finite")
+        if p >= skip:
+            sum_log += math.log(max(d, 1e-300) / d0)
+            t_count += t
+        xp = x + d0 * (xp - x) / d if d > 0 else x + d0 * u
+    return sum_log / t_count

@@ -1,0 +1,395 @@
+"""The results object of a sweep: arrays per omega, NetCDF save/load, DataFrame and JSON views.
+
+File format (``SweepResult.save``): NetCDF-4 (HDF5) written with xarray (engine ``netcdf4``, or
+``h5netcdf`` when netCDF4 is not installed), atomically.
+Global attributes ``format = "gear-env-sweep"`` and ``format_version`` (currently 1) identify it;
+``config`` holds the sweep settings and ``params`` the physical parameters as JSON; ``checksum``
+is a SHA-256 over all data variables, so a truncated or altered file is rejected on load instead
+of being read partially. Dimensions: ``omega`` (n), ``record`` (recorded mesh periods),
+``pc`` (the 14 Poincare columns of ``kernels.PC_*``), ``state`` (10).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import kernels as K
+from ..params import GearParams
+from ..simulator import STATE_NAMES
+
+FORMAT_NAME = "gear-env-sweep"
+FORMAT_VERSION = 1
+AMPLITUDE_NAMES = ("U", "delta", "bd", "psi", "force")
+PC_NAMES = STATE_NAMES + ("Delta", "B_d", "psi", "force")
+LYAPUNOV_UNITS = "1 per unit natural time (omega_n t)"
+
+
+class ResultsFileError(ValueError):
+    """A results file is missing data, truncated, corrupt or of an incompatible format version."""
+
+
+@dataclass
+class SweepResult:
+    """Everything a sweep records, one entry per meshing frequency (in the order of ``omega``
+    as given, whatever the sweep direction).
+
+    Attributes:
+        omega: (n,) meshing frequencies Omega/omega_n.
+        model: ``"constant"`` or ``"dynamic"``.
+        direction: ``"forward"`` (increasing omega) or ``"reverse"``.
+        params: the physical parameters.
+        regime: n labels ``"period-N"``, ``"quasi-periodic"`` or ``"chaotic"``.
+        period: (n,) int, N for periodic motions, 0 otherwise.
+        lyapunov: (n,) largest Lyapunov exponent per unit natural time, or None if not computed.
+        poincare: (n, periods, 14) Poincare samples (columns ``PC_*``: 10 states, Delta, B_d,
+            psi, force) of the last recorded window.
+        amplitude: name -> (n,) half peak-to-peak of ``U``, ``delta``, ``bd``, ``psi``, ``force``.
+        contact_loss: (n,) fraction of time with the teeth apart or in back contact.
+        final_states: (n, 10) state at the end of each omega (b0 units).
+        steps_per_period: (n,) Newmark steps per mesh period used at each omega.
+        n_clusters: (n,) Poincare clusters; converged: (n,) False if a periodic orbit was still
+            being approached at the end; drive_impacts / back_impacts: (n,) per mesh period.
+        transient, periods: mesh periods discarded / recorded per omega.
+        meta: free-form settings (JSON-serialisable).
+    """
+
+    omega: np.ndarray
+    model: str
+    direction: str
+    params: GearParams
+    regime: list[str]
+    period: np.ndarray
+    lyapunov: np.ndarray | None
+    poincare: np.ndarray
+    amplitude: dict[str, np.ndarray]
+    contact_loss: np.ndarray
+    final_states: np.ndarray
+    steps_per_period: np.ndarray
+    n_clusters: np.ndarray
+    converged: np.ndarray
+    drive_impacts: np.ndarray
+    back_impacts: np.ndarray
+    transient: int
+    periods: int
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.omega)
+
+    # views ---------------------------------------------------------------------------------
+    def poincare_of(self, name: str = "Delta") -> np.ndarray:
+        """(n, periods) Poincare samples of one column (a state name, ``Delta``, ``B_d``,
+        ``psi`` or ``force``; ``delta``/``bd`` are accepted as aliases)."""
+        alias = {"delta": "Delta", "bd": "B_d"}
+        col = alias.get(name, name)
+        if col not in PC_NAMES:
+            raise ValueError(f"name must be one of {list(PC_NAMES)}, got {name!r}")
+        return self.poincare[:, :, PC_NAMES.index(col)]
+
+    def to_dataframe(self):  # -> pandas.DataFrame
+        """One row per omega: omega, regime, period, lyapunov, amplitudes, contact loss, ..."""
+        import pandas as pd
+
+        data: dict[str, Any] = {
+            "omega": self.omega,
+            "regime": self.regime,
+            "period": self.period,
+            "lyapunov": self.lyapunov if self.lyapunov is not None else [None] * len(self),
+        }
+        for k in AMPLITUDE_NAMES:
+            data[f"amplitude_{k.lower()}"] = self.amplitude[k]
+        data.update(
+            contact_loss=self.contact_loss,
+            drive_impacts=self.drive_impacts,
+            back_impacts=self.back_impacts,
+            n_clusters=self.n_clusters,
+            converged=self.converged,
+            steps_per_period=self.steps_per_period,
+        )
+        return pd.DataFrame(data)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-ready dict: omega, regime, period, amplitude_u (and the other amplitudes),
+        lyapunov (or null), contact_loss, poincare_delta and poincare_u (lists of lists), settings."""
+        d: dict[str, Any] = {
+            "format": FORMAT_NAME,
+            "format_version": FORMAT_VERSION,
+            "model": self.model,
+            "direction": self.direction,
+            "transient": self.transient,
+            "periods": self.periods,
+            "units": "displacements in b0 (half backlash); force in k_m0 b0; psi in rad; lyapunov " + LYAPUNOV_UNITS,
+            "omega": self.omega.tolist(),
+            "regime": list(self.regime),
+            "period": self.period.tolist(),
+            "lyapunov": None if self.lyapunov is None else self.lyapunov.tolist(),
+        }
+        for k in AMPLITUDE_NAMES:
+            d[f"amplitude_{k.lower()}"] = self.amplitude[k].tolist()
+        d["contact_loss"] = self.contact_loss.tolist()
+        d["converged"] = [bool(c) for c in self.converged]
+        d["steps_per_period"] = self.steps_per_period.tolist()
+        d["poincare_delta"] = self.poincare_of("Delta").tolist()
+        d["poincare_u"] = self.poincare_of("U").tolist()
+        d["params"] = self.params.to_dict()
+        d["meta"] = self.meta
+        return d
+
+    def to_json(self, path: str) -> None:
+        """Write :meth:`to_json_dict` atomically."""
+        from ..io import atomic_write_text
+
+        atomic_write_text(path, json.dumps(self.to_json_dict()))
+
+    def intervals(self) -> list[tuple[float, float, str]]:
+        """Runs of equal regime along increasing omega: [(omega_first, omega_last, label), ...]."""
+        idx = np.argsort(self.omega, kind="stable")
+        out: list[tuple[float, float, str]] = []
+        for i in idx:
+            w, lab = float(self.omega[i]), self.regime[i]
+            if out and out[-1][2] == lab:
+                out[-1] = (out[-1][0], w, lab)
+            else:
+                out.append((w, w, lab))
+        return out
+
+    def summary(self) -> str:
+        """Counts of each regime and the omega intervals of non-period-1 motion, as text."""
+        from collections import Counter
+
+        c = Counter(self.regime)
+        parts = [f"{k}: {v}" for k, v in sorted(c.items(), key=lambda kv: -kv[1])]
+        return f"{len(self)} points ({self.model}, {self.direction}) -> " + ", ".join(parts)
+
+    # file I/O ------------------------------------------------------------------------------
+    def _arrays(self) -> dict[str, np.ndarray]:
+        out = {
+            "omega": np.asarray(self.omega, float),
+            "regime": np.asarray(self.regime, dtype=object),
+            "period": np.asarray(self.period, np.int64),
+            "poincare": np.asarray(self.poincare, float),
+            "contact_loss": np.asarray(self.contact_loss, float),
+            "final_states": np.asarray(self.final_states, float),
+            "steps_per_period": np.asarray(self.steps_per_period, np.int64),
+            "n_clusters": np.asarray(self.n_clusters, np.int64),
+            "converged": np.asarray(self.converged, np.int8),
+            "drive_impacts": np.asarray(self.drive_impacts, float),
+            "back_impacts": np.asarray(self.back_impacts, float),
+        }
+        if self.lyapunov is not None:
+            out["lyapunov"] = np.asarray(self.lyapunov, float)
+        for k in AMPLITUDE_NAMES:
+            out[f"amplitude_{k}"] = np.asarray(self.amplitude[k], float)
+        return out
+
+    def save(self, path: str) -> None:
+        """Write a self-describing NetCDF-4 file atomically (see the module docstring)."""
+        import xarray as xr
+
+        from ..io import atomic_write
+
+        arr = self._arrays()
+        dims = {
+            "poincare": ("omega", "record", "pc"),
+            "final_states": ("omega", "state"),
+        }
+        coords = {"omega": arr["omega"], "pc": list(PC_NAMES), "state": list(STATE_NAMES)}
+        data_vars = {}
+        for k, v in arr.items():
+            if k == "omega":
+                continue
+            data_vars[k] = (dims.get(k, ("omega",)), v.astype(str) if k == "regime" else v)
+        ds = xr.Dataset(data_vars, coords=coords)
+        ds["lyapunov" if "lyapunov" in ds else "omega"].attrs["units"] = LYAPUNOV_UNITS if "lyapunov" in ds else "1"
+        config = {
+            "model": self.model,
+            "direction": self.direction,
+            "transient": int(self.transient),
+            "periods": int(self.periods),
+            "n": len(self),
+            "has_lyapunov": self.lyapunov is not None,
+            "meta": self.meta,
+        }
+        ds.attrs.update(
+            format=FORMAT_NAME,
+            format_version=FORMAT_VERSION,
+            config=json.dumps(config),
+            params=json.dumps(self.params.to_dict()),
+            checksum=_checksum(arr),
+            description="gear-env sweep results: Poincare samples, amplitudes, motion class per omega",
+        )
+
+        def _w(tmp: str) -> None:
+            ds.to_netcdf(tmp, engine=_engine(), format="NETCDF4")  # type: ignore[call-overload]
+
+        atomic_write(path, _w)
+
+    @classmethod
+    def load(cls, path: str) -> SweepResult:
+        """Read a file written by :meth:`save`.
+
+        Raises:
+            FileNotFoundError: no such file.
+            ResultsFileError (a ValueError): not a sweep file, an incompatible format version,
+                or truncated/corrupt data (checksum mismatch). Nothing is returned partially.
+        """
+        import xarray as xr
+
+        p = Path(path)
+        if not p.exists():
+            raise FileNotFoundError(f"results file {str(p)!r} does not exist")
+        try:
+            with xr.open_dataset(p, engine=_engine()) as ds0:
+                ds = ds0.load()
+        except Exception as exc:  # h5py/netCDF raise many types on a damaged file
+            raise ResultsFileError(f"results file {str(p)!r} is truncated or not a NetCDF-4 file: {exc}") from exc
+        if ds.attrs.get("format") != FORMAT_NAME:
+            raise ResultsFileError(f"{str(p)!r} is not a gear-env sweep file (format={ds.attrs.get('format')!r})")
+        ver = int(ds.attrs.get("format_version", -1))
+        if ver != FORMAT_VERSION:
+            raise ResultsFileError(
+                f"{str(p)!r} has format_version {ver}; this gear-env reads version {FORMAT_VERSION} only"
+            )
+        try:
+            config = json.loads(ds.attrs["config"])
+            params = GearParams.from_dict(json.loads(ds.attrs["params"]))
+            arr = {str(k): ds[k].values for k in ds.data_vars}
+            arr["omega"] = ds["omega"].values
+            arr["regime"] = np.asarray([str(s) for s in arr["regime"]], dtype=object)
+        except (KeyError, ValueError, TypeError) as exc:
+            raise ResultsFileError(f"results file {str(p)!r} is incomplete: {exc}") from exc
+        if config.get("has_lyapunov") and "lyapunov" not in arr:
+            raise ResultsFileError(f"results file {str(p)!r} is incomplete: lyapunov missing")
+        if len(arr["omega"]) != config.get("n"):
+            raise ResultsFileError(f"results file {str(p)!r} holds {len(arr['omega'])} of {config.get('n')} points")
+        if _checksum(arr) != ds.attrs.get("checksum"):
+            raise ResultsFileError(f"results file {str(p)!r} is corrupt: checksum mismatch")
+        return cls(
+            omega=arr["omega"].astype(float),
+            model=config["model"],
+            direction=config["direction"],
+            params=params,
+            regime=[str(s) for s in arr["regime"]],
+            period=arr["period"].astype(int),
+            lyapunov=arr.get("lyapunov"),
+            poincare=arr["poincare"],
+            amplitude={k: arr[f"amplitude_{k}"] for k in AMPLITUDE_NAMES},
+            contact_loss=arr["contact_loss"],
+            final_states=arr["final_states"],
+            steps_per_period=arr["steps_per_period"].astype(int),
+            n_clusters=arr["n_clusters"].astype(int),
+            converged=arr["converged"].astype(bool),
+            drive_impacts=arr["drive_impacts"],
+            back_impacts=arr["back_impacts"],
+            transient=int(config["transient"]),
+            periods=int(config["periods"]),
+            meta=config.get("meta", {}),
+        )
+
+
+def _engine() -> str:
+    """xarray engine for NetCDF-4 files: netcdf4 if installed, else h5netcdf (needs h5py)."""
+    try:
+        import netCDF4  # noqa: F401
+
+        return "netcdf4"
+    except ImportError:
+        return "h5netcdf"
+
+
+def _checksum(arr: dict[str, np.ndarray]) -> str:
+    h = hashlib.sha256()
+    for k in sorted(arr):
+        v = arr[k]
+        h.update(k.encode())
+        if v.dtype == object or v.dtype.kind in "US":
+            h.update("\x00".join(str(s) for s in v.tolist()).encode())
+        elif v.dtype.kind == "b":
+            h.update(np.ascontiguousarray(v.astype(np.int8)).tobytes())
+        elif v.dtype.kind in "iu":
+            h.update(np.ascontiguousarray(v.astype(np.int64)).tobytes())
+        else:
+            h.update(np.ascontiguousarray(v.astype(np.float64)).tobytes())
+    return h.hexdigest()
+
+
+@dataclass
+class PointResult:
+    """What one omega of a sweep produces (the unit of work that chunks return)."""
+
+    omega: float
+    regime: str
+    period: int
+    lyapunov: float | None
+    poincare: np.ndarray
+    stats: np.ndarray
+    final_state: np.ndarray
+    steps_per_period: int
+    n_clusters: int
+    converged: bool
+    periods_recorded: int
+
+    def amplitude(self, name: str) -> float:
+        idx = {
+            "U": (K.ST_U_MAX, K.ST_U_MIN),
+            "delta": (K.ST_D_MAX, K.ST_D_MIN),
+            "bd": (K.ST_BD_MAX, K.ST_BD_MIN),
+            "psi": (K.ST_PSI_MAX, K.ST_PSI_MIN),
+            "force": (K.ST_F_MAX, K.ST_F_MIN),
+        }[name]
+        return float(0.5 * (self.stats[idx[0]] - self.stats[idx[1]]))
+
+    @property
+    def contact_loss(self) -> float:
+        s = self.stats
+        return float((s[K.ST_SEP_TIME] + s[K.ST_BACK_TIME]) / max(s[K.ST_TIME], 1e-300))
+
+
+def assemble(
+    omegas: np.ndarray,
+    points: list[PointResult],
+    model: str,
+    direction: str,
+    params: GearParams,
+    transient: int,
+    periods: int,
+    lyapunov: bool,
+    meta: dict[str, Any] | None = None,
+) -> SweepResult:
+    """Build a :class:`SweepResult` from per-omega results (in the order of ``omegas``)."""
+    n = len(points)
+    amp = {k: np.array([p.amplitude(k) for p in points]) for k in AMPLITUDE_NAMES}
+    lyap = None
+    if lyapunov:
+        vals = [p.lyapunov for p in points]
+        if any(v is None or not math.isfinite(v) for v in vals):
+            raise ValueError("internal error: a Lyapunov exponent is missing")
+        lyap = np.array(vals, float)
+    return SweepResult(
+        omega=np.asarray(omegas, float),
+        model=model,
+        direction=direction,
+        params=params,
+        regime=[p.regime for p in points],
+        period=np.array([p.period for p in points], int),
+        lyapunov=lyap,
+        poincare=np.stack([p.poincare for p in points]) if n else np.empty((0, periods, K.N_PC)),
+        amplitude=amp,
+        contact_loss=np.array([p.contact_loss for p in points]),
+        final_states=np.stack([p.final_state for p in points]) if n else np.empty((0, K.NSTATE)),
+        steps_per_period=np.array([p.steps_per_period for p in points], int),
+        n_clusters=np.array([p.n_clusters for p in points], int),
+        converged=np.array([p.converged for p in points], bool),
+        drive_impacts=np.array([p.stats[K.ST_DRIVE_IMPACTS] / p.periods_recorded for p in points]),
+        back_impacts=np.array([p.stats[K.ST_BACK_IMPACTS] / p.periods_recorded for p in points]),
+        transient=transient,
+        periods=periods,
+        meta=dict(meta or {}),
+    )

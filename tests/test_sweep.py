@@ -1,0 +1,183 @@
+"""Sweeps: argument checks, warm starts, results file round trip and damage, checkpoint resume, CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from gear_env.analysis import SweepResult, sweep
+from gear_env.analysis.results import ResultsFileError
+from gear_env.analysis.sweep import SweepConfig, run_point, steps_for
+from gear_env.params import GearParams
+
+FAST = dict(transient=40, periods=24, progress=False, steps_per_period=64)
+
+
+@pytest.mark.parametrize(
+    "kwargs, word",
+    [
+        ({"omegas": []}, "omegas"),
+        ({"omegas": [1.0, float("nan")]}, "omegas"),
+        ({"omegas": [1.0, float("inf")]}, "omegas"),
+        ({"omegas": [[1.0, 2.0]]}, "omegas"),
+        ({"omegas": [0.0]}, "omegas"),
+        ({"direction": "up"}, "direction"),
+        ({"transient": 0}, "transient"),
+        ({"transient": -5}, "transient"),
+        ({"transient": 2.5}, "transient"),
+        ({"transient": True}, "transient"),
+        ({"periods": 2}, "periods"),
+        ({"model": "rigid"}, "model"),
+        ({"workers": 0}, "workers"),
+        ({"params": {"kappa": 0.2}}, "params"),
+    ],
+)
+def test_invalid_arguments_name_the_argument(kwargs, word):
+    args = {"omegas": [1.0, 1.1], **FAST, **kwargs}
+    with pytest.raises(ValueError, match=word):
+        sweep(**args)
+
+
+def test_forward_and_reverse_warm_start_from_previous_point():
+    grid = [1.1, 1.0, 1.2]  # results come back in the given order
+    p = GearParams()
+    for direction, order in (("forward", [1, 0, 2]), ("reverse", [2, 0, 1])):
+        r = sweep(grid, model="constant", direction=direction, lyapunov=False, **FAST)
+        assert list(r.omega) == grid and r.direction == direction
+        cfg = SweepConfig("constant", direction, 40, 24, p, 64, False, False)
+        x = None
+        for i in order:  # the chain a slowly swept machine follows
+            pr = run_point(cfg, grid[i], x)
+            np.testing.assert_array_equal(pr.final_state, r.final_states[i])
+            np.testing.assert_array_equal(pr.poincare, r.poincare[i])
+            x = pr.final_state
+    assert r.lyapunov is None
+
+
+def test_results_without_exponents_round_trip(tmp_path):
+    r = sweep([1.0, 1.1], model="constant", lyapunov=False, **FAST)
+    r.save(str(tmp_path / "n.nc"))
+    back = SweepResult.load(str(tmp_path / "n.nc"))
+    assert back.lyapunov is None and back.regime == r.regime
+    assert r.to_json_dict()["lyapunov"] is None and r.to_dataframe()["lyapunov"].isna().all()
+
+
+def test_sweep_contents_and_views():
+    r = sweep([0.8, 1.2], model="dynamic", transient=300, periods=24, progress=False)
+    assert r.regime == ["period-1", "period-1"] and list(r.period) == [1, 1]
+    assert r.intervals() == [(0.8, 1.2, "period-1")]
+    assert r.poincare.shape == (2, 24, 14) and r.final_states.shape == (2, 10)
+    assert np.all(r.lyapunov < 0)
+    assert set(r.amplitude) == {"U", "delta", "bd", "psi", "force"}
+    assert np.all(r.amplitude["U"] > 0) and np.all((0 <= r.contact_loss) & (r.contact_loss <= 1))
+    df = r.to_dataframe()
+    assert list(df["omega"]) == [0.8, 1.2] and "amplitude_u" in df and "lyapunov" in df
+    d = json.loads(json.dumps(r.to_json_dict()))
+    for key in ("omega", "regime", "amplitude_u", "lyapunov", "poincare_delta"):
+        assert len(d[key]) == 2
+    assert len(d["poincare_delta"][0]) == 24
+
+
+def test_steps_for_rule():
+    assert steps_for(0.05) == 128 and steps_for(0.05, adaptive=True) == 1280
+    assert steps_for(1.0, adaptive=True) == 128
+
+
+@pytest.fixture(scope="module")
+def small_result():
+    return sweep([0.5, 1.0, 2.0], model="constant", **FAST)
+
+
+def test_save_load_round_trip(tmp_path, small_result):
+    path = tmp_path / "r.nc"
+    small_result.save(str(path))
+    back = SweepResult.load(str(path))
+    assert back.regime == small_result.regime and back.model == "constant"
+    np.testing.assert_array_equal(back.poincare, small_result.poincare)
+    np.testing.assert_array_equal(back.lyapunov, small_result.lyapunov)
+    for k, v in small_result.amplitude.items():
+        np.testing.assert_array_equal(back.amplitude[k], v)
+    assert back.params == small_result.params and back.transient == 40 and back.periods == 24
+
+
+def test_truncated_or_foreign_or_altered_files_are_refused(tmp_path, small_result):
+    import netCDF4
+
+    path = tmp_path / "r.nc"
+    small_result.save(str(path))
+    raw = path.read_bytes()
+    for cut in (len(raw) // 2, len(raw) - 100):
+        bad = tmp_path / f"cut{cut}.nc"
+        bad.write_bytes(raw[:cut])
+        with pytest.raises(ResultsFileError, match="truncated|corrupt|incomplete"):
+            SweepResult.load(str(bad))
+    with netCDF4.Dataset(path, "a") as ds:  # a version we do not know
+        ds.format_version = 99
+    with pytest.raises(ResultsFileError, match="format_version 99"):
+        SweepResult.load(str(path))
+    small_result.save(str(path))
+    with netCDF4.Dataset(path, "a") as ds:  # data changed behind our back
+        ds["lyapunov"][0] = 1.0
+    with pytest.raises(ResultsFileError, match="checksum"):
+        SweepResult.load(str(path))
+    with pytest.raises(FileNotFoundError):
+        SweepResult.load(str(tmp_path / "missing.nc"))
+
+
+def test_interrupted_sweep_resumes_from_checkpoint(tmp_path):
+    grid = np.linspace(0.9, 1.3, 6)
+    ck = tmp_path / "sweep.ckpt.npz"
+    full = sweep(grid, model="constant", **FAST)
+
+    def interrupt(done):
+        if done == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        sweep(grid, model="constant", checkpoint=str(ck), _on_point=interrupt, **FAST)
+    assert ck.exists()
+    with np.load(ck) as z:
+        assert list(z["index"]) == [0, 1, 2]
+    calls = []
+    resumed = sweep(grid, model="constant", checkpoint=str(ck), _on_point=calls.append, **FAST)
+    assert calls == [4, 5, 6]  # only the missing points ran
+    assert resumed.regime == full.regime
+    np.testing.assert_array_equal(resumed.poincare, full.poincare)
+    np.testing.assert_array_equal(resumed.lyapunov, full.lyapunov)
+    assert not ck.exists()  # removed after success
+
+
+def test_checkpoint_of_another_sweep_is_refused(tmp_path):
+    ck = tmp_path / "c.npz"
+
+    def stop(done):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        sweep([1.0, 1.1], model="constant", checkpoint=str(ck), _on_point=stop, **FAST)
+    with pytest.raises(ValueError, match="different sweep"):
+        sweep([1.0, 1.1], model="dynamic", checkpoint=str(ck), **FAST)
+    with pytest.raises(ValueError, match="omega grid"):
+        sweep([1.0, 1.2], model="constant", checkpoint=str(ck), **FAST)
+    ck.write_bytes(b"PK\x03\x04garbage")
+    with pytest.raises(ValueError, match="corrupt"):
+        sweep([1.0, 1.1], model="constant", checkpoint=str(ck), **FAST)
+
+
+def test_cli_sweep_writes_json_netcdf_and_plot(tmp_path, capsys):
+    from gear_env.cli import main
+
+    js, nc, png = tmp_path / "o.json", tmp_path / "o.nc", tmp_path / "b.png"
+    argv = ["sweep", "--model", "constant", "--omega-min", "0.9", "--omega-max", "2.0", "--points", "4",
+            "--transient", "30", "--periods", "20", "--steps-per-period", "64", "--quiet",
+            "--json", str(js), "--out", str(nc), "--plot", str(png)]  # fmt: skip
+    assert main(argv) == 0
+    d = json.loads(js.read_text())
+    assert len(d["omega"]) == 4 and len(d["regime"]) == 4 and len(d["amplitude_u"]) == 4
+    assert len(d["lyapunov"]) == 4 and np.shape(d["poincare_delta"]) == (4, 20)
+    assert SweepResult.load(str(nc)).regime == d["regime"]
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    assert main(["sweep", "--points", "0", "--quiet"]) == 2
+    assert "--points" in capsys.readouterr().err
