@@ -53,7 +53,7 @@ def configure() -> str | None:
             return None
     except OSError:
         return None
-    config.CACHE_DIR = str(target)
+    config.CACHE_DIR = str(target)  # type: ignore[attr-defined]  # numba sets its config attributes at runtime
     return str(target)
 
 

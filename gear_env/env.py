@@ -29,6 +29,8 @@ def check_action(action: Any, n: int | None = None) -> np.ndarray:
             raise ValueError(f"action must be finite (no NaN or inf), got {action!r}")
         return np.array([min(max(v, -1.0), 1.0)])
     try:
+        if np.iscomplexobj(action):  # a cast would silently drop the imaginary part
+            raise TypeError
         a = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(f"action must be a float array of shape (1,) in [-1, 1], got {action!r}") from None

@@ -15,11 +15,13 @@ from typing import Any
 
 import numpy as np
 
-from .params import MODELS, GearParams
+from .params import C_FS, MODELS, GearParams
 
 ACTION_MODES = ("delta", "target")
 OBSERVATION_SETS = ("sensors", "full")
 DEMAND_PRESETS = ("steps", "ramp")
+MIN_STATIC_MESH_FORCE = 1e-6
+"""Smallest static mesh force F_s [k_m0 b0] the env accepts (the default pair has 0.0275)."""
 
 
 def _real(name: str, value: Any, lo: float, hi: float, lo_open: bool = False, hi_open: bool = False) -> float:
@@ -127,6 +129,11 @@ class GearSpeedConfig:
         elif not isinstance(p, GearParams):
             raise ValueError(f"GearSpeedConfig.params must be a GearParams, a dict of its fields or None, got {p!r}")
         s(self, "params", p)
+        if not p.consts[C_FS] >= MIN_STATIC_MESH_FORCE:  # features and rewards are forces / F_s: F_s = 0 gives inf
+            raise ValueError(
+                "GearSpeedConfig.params must load the mesh (T_p, T_g > 0): the env scales forces by the static mesh "
+                f"force F_s, got F_s = {p.consts[C_FS]:g} k_m0 b0 (need >= {MIN_STATIC_MESH_FORCE:g})"
+            )
         _choice("model", self.model, MODELS)
         s(self, "steps_per_period", _int("steps_per_period", self.steps_per_period, 16, 1024))
         if not isinstance(self.randomize_params, (bool, np.bool_)):
@@ -182,7 +189,7 @@ class GearSpeedConfig:
                 f"GearSpeedConfig.demand must be None, one of {list(DEMAND_PRESETS)} or a non-empty list of "
                 f"(t_steps, omega) points, got {v!r}"
             )
-        pts = []
+        pts: list[tuple[float, float]] = []
         for i, pt in enumerate(v):
             if not isinstance(pt, Sequence) or isinstance(pt, str) or len(pt) != 2:
                 raise ValueError(f"GearSpeedConfig.demand[{i}] must be a (t_steps, omega) pair, got {pt!r}")
@@ -268,10 +275,10 @@ class GearSpeedConfig:
     @classmethod
     def from_json(cls, path: str) -> GearSpeedConfig:
         """Read a JSON object of settings (the ``--config`` file of the CLI)."""
-        with open(path, encoding="utf-8") as fh:
+        with open(path, encoding="utf-8-sig") as fh:  # -sig: tolerate a byte-order mark
             try:
                 data = json.load(fh)
-            except json.JSONDecodeError as exc:
+            except (json.JSONDecodeError, UnicodeDecodeError) as exc:
                 raise ValueError(f"config file {path!r} is not valid JSON: {exc}") from None
         if not isinstance(data, dict):
             raise ValueError(f"config file {path!r} must hold a JSON object of settings")

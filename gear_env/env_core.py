@@ -278,13 +278,15 @@ class GearSpeedCore:
         cfg = self.config
         rows = np.asarray(rows, np.int64)
         w_init = np.empty(len(rows))
-        forced = None if not options else options.get("omega")
-        if forced is not None:
-            forced = float(forced)
+        raw = None if not options else options.get("omega")
+        forced: float | None = None
+        if raw is not None:
+            try:  # a string, list or bool is reported like an out-of-range number
+                forced = math.nan if isinstance(raw, bool) else float(raw)
+            except (TypeError, ValueError):
+                forced = math.nan
             if not (math.isfinite(forced) and cfg.omega_min <= forced <= cfg.omega_max):
-                raise ValueError(
-                    f"reset option 'omega' must be in [{cfg.omega_min:g}, {cfg.omega_max:g}], got {options['omega']!r}"
-                )
+                raise ValueError(f"reset option 'omega' must be in [{cfg.omega_min:g}, {cfg.omega_max:g}], got {raw!r}")
         for j, r in enumerate(rows):
             rng = rngs[j]
             if cfg.randomize_params:

@@ -24,7 +24,10 @@ def atomic_write(path: str | os.PathLike, writer: Callable[[str], None]) -> None
     """
     target = Path(path)
     _check_dir(target)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or ".")
+    try:  # a read-only mount (EROFS, even for root) or a full inode table fails here
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or ".")
+    except OSError as exc:
+        raise OSError(f"could not write {str(target)!r}: {exc}") from exc
     os.close(fd)
     try:
         os.chmod(tmp, _file_mode(target))

@@ -162,9 +162,9 @@ class GearParams:
                 object.__setattr__(self, f.name, int(v))
                 continue
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-                lo, hi, lo_in, hi_in = BOUNDS[f.name]
+                flo, fhi, lo_in, hi_in = BOUNDS[f.name]
                 raise ValueError(
-                    f"GearParams.{f.name} must be a real number in {_range_text(lo, hi, lo_in, hi_in)}, got {v!r}"
+                    f"GearParams.{f.name} must be a real number in {_range_text(flo, fhi, lo_in, hi_in)}, got {v!r}"
                 )
             object.__setattr__(self, f.name, float(v))
             _check_range(f.name, float(v))

@@ -79,7 +79,10 @@ class SB3VecEnvAdapter(VecEnv):
     def step_wait(self):
         if self._actions is None:
             raise RuntimeError("step_async() must be called before step_wait()")
-        obs, rewards, term, trunc, info = self.venv.step(self._actions.reshape(self.num_envs, 1))
+        a = self._actions
+        if a.size == self.num_envs:  # SB3 passes (n, 1) or (n,); anything else is reported by check_action
+            a = a.reshape(self.num_envs, 1)
+        obs, rewards, term, trunc, info = self.venv.step(a)
         self._actions = None
         dones = term | trunc
         keys = INFO_KEYS.keys()

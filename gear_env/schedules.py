@@ -122,10 +122,15 @@ class SpeedSchedule:
         where = f"schedule file {p!r}"
         if not os.path.isfile(p):
             raise ValueError(f"{where} does not exist")
-        if p.lower().endswith(".json"):
-            points, rows = cls._read_json(p, where)
-        else:
-            points, rows = cls._read_csv(p, where)
+        try:
+            if p.lower().endswith(".json"):
+                points, rows = cls._read_json(p, where)
+            else:
+                points, rows = cls._read_csv(p, where)
+        except UnicodeDecodeError as exc:  # e.g. UTF-16 or a binary file
+            raise ValueError(f"{where} is not UTF-8 text ({exc})") from None
+        except csv.Error as exc:
+            raise ValueError(f"{where}: unreadable CSV ({exc})") from None
         sched = cls.__new__(cls)
         sched.config = cfg
         sched.points = _validate_points(points, cfg, where, rows)
@@ -137,7 +142,7 @@ class SpeedSchedule:
     def _read_csv(path: str, where: str) -> tuple[list[Any], list[str]]:
         points: list[Any] = []
         rows: list[str] = []
-        with open(path, newline="", encoding="utf-8") as fh:
+        with open(path, newline="", encoding="utf-8-sig") as fh:  # -sig: tolerate a byte-order mark (Excel)
             for lineno, rec in enumerate(csv.reader(fh), start=1):
                 cells = [c.strip() for c in rec]
                 if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
@@ -150,7 +155,7 @@ class SpeedSchedule:
 
     @staticmethod
     def _read_json(path: str, where: str) -> tuple[list[Any], list[str]]:
-        with open(path, encoding="utf-8") as fh:
+        with open(path, encoding="utf-8-sig") as fh:
             try:
                 data = json.load(fh)
             except json.JSONDecodeError as exc:

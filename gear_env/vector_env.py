@@ -32,7 +32,10 @@ def _seed_generators(num_envs: int, seed: int | Sequence[int | None] | None) -> 
         return [np.random.default_rng(s) for s in ss.spawn(num_envs)]
     if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
         return [gym.utils.seeding.np_random(int(seed) + i)[0] for i in range(num_envs)]
-    seeds = list(seed)
+    try:
+        seeds = [] if isinstance(seed, (bool, str, bytes)) else list(seed)
+    except TypeError:  # e.g. a float
+        seeds = []
     if len(seeds) != num_envs:
         raise ValueError(f"seed must be an int, None or a list of {num_envs} seeds, got {seed!r}")
     return [gym.utils.seeding.np_random(s)[0] for s in seeds]

@@ -81,7 +81,10 @@ class Classification:
 
 
 def _check_points(points: Any) -> np.ndarray:
-    p = np.asarray(points, dtype=float)
+    try:
+        p = np.asarray(points, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"poincare_points must be an (m, d) array of numbers ({exc})") from None
     if p.ndim == 1:
         p = p[:, None]
     if p.ndim != 2 or p.shape[0] < 2 or p.shape[1] < 1:

@@ -201,6 +201,8 @@ def coarse_pass(
 
 
 def _check_grid(omegas: Any) -> np.ndarray:
+    if omegas is None or np.asarray(omegas).dtype == bool:  # asarray(None, float) would be NaN, True 1.0
+        raise ValueError(f"omegas must be a 1-D sequence of numbers, got {omegas!r}")
     try:
         w = np.asarray(omegas, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -425,6 +427,13 @@ def _prepare(
     params = GearParams() if params is None else params
     if not isinstance(params, GearParams):
         raise ValueError(f"params must be a GearParams or None, got {type(params).__name__}")
+    # the classification settings are checked here, not only when the first point is classified
+    real = (int, float, np.integer, np.floating)
+    if isinstance(tol, bool) or not isinstance(tol, real) or not 0.0 < tol < 0.5:
+        raise ValueError(f"tol must be in (0, 0.5), got {tol!r}")
+    max_period = check_count(max_period, "max_period", 1)
+    if isinstance(lyap_tol, bool) or not isinstance(lyap_tol, real) or not (math.isfinite(lyap_tol) and lyap_tol > 0):
+        raise ValueError(f"lyap_tol must be a finite number > 0, got {lyap_tol!r}")
     cfg = SweepConfig(
         model, direction, transient, periods, params, steps_per_period, bool(adaptive_steps), bool(lyapunov),
         float(tol), int(max_period), float(lyap_tol), max_extend,
@@ -463,6 +472,8 @@ def _execute(
     coarse_periods: int,
     progress: bool,
 ) -> None:
+    if chunks is not None:  # checked even where it is not used (a serial sweep), so a typo is not ignored
+        check_count(chunks, "chunks", 1)
     total = sum(len(j.ws) for j in jobs)
     desc = f"sweep {jobs[0].cfg.model} {jobs[0].cfg.direction}" if len(jobs) == 1 else f"{len(jobs)} sweeps"
     bar = _Progress(total, progress, desc)

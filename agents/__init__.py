@@ -1,0 +1,22 @@
+"""Agents for GearSpeed-v0: PPO training (:mod:`agents.ppo`), scripted baselines
+(:mod:`agents.baselines`), the oracle (:mod:`agents.oracle`), trained-policy loading
+(:mod:`agents.trained`), run folders (:mod:`agents.runs`), the comparison report
+(:mod:`agents.report`) and the policy registry (:func:`agents.registry.resolve_policy`) through
+which ``gear-env evaluate --policy SPEC`` loads them all.
+
+Every policy has the stable-baselines3 interface
+``predict(observation, state=None, episode_start=None, deterministic=True) -> (actions, state)``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["resolve_policy"]
+
+
+def resolve_policy(spec: str, config: Any = None) -> Any:
+    """The policy named by ``spec`` for the environment ``config``; see :func:`agents.registry.resolve_policy`."""
+    from .registry import resolve_policy as _resolve
+
+    return _resolve(spec, config)

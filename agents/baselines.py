@@ -1,0 +1,199 @@
+"""Scripted speed policies for GearSpeed-v0 with the SB3 ``predict`` interface.
+
+Every policy here reads only the observation (omega is observation[0], scaled linearly from
+[omega_min, omega_max] to [-1, 1]; the vibration features follow ``gear_env.env_core.SENSOR_NAMES``)
+and returns actions for either action mode of the environment, so PPO models, these baselines,
+the oracle and the schedules of ``gear_env.schedules`` are all evaluated by the same code
+(``gear_env.evaluation.evaluate_policies``).
+
+* :class:`ConstantSpeed` - go to a fixed omega at the maximum rate and hold it ("constant:1.2";
+  "constant-best" uses the omega of the best steady reward, found by :func:`best_constant_omega`).
+* :class:`SlowRamp` - ramp towards a target omega at a fraction of the maximum rate ("ramp").
+* :class:`HillClimber` - greedy: raise omega while the sensors show periodic, contact-free,
+  impact-free motion; back off when the periodicity defect, contact loss or impacts rise, and do
+  not climb again above the lowest speed where trouble was seen ("hill-climber").
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .envs import control_parameters
+
+OBS_OMEGA = 0
+OBS_DEFECT = 5  # log1p(periodicity defect / defect_scale)
+OBS_CONTACT = 7  # contact-loss fraction of the step
+OBS_DRIVE_IMPACTS = 8  # drive-side re-impacts per mesh period
+OBS_BACK_IMPACTS = 9  # back-side impacts per mesh period
+
+
+class ScriptedPolicy:
+    """Base class: converts a desired omega per environment into actions for the configured mode.
+
+    Subclasses implement ``_targets(omega, obs, state) -> (target omega (n,), state)``.
+    ``predict`` accepts one observation (shape (obs_dim,)) or a batch (n, obs_dim) and returns
+    float32 actions of shape (1,) or (n, 1) in [-1, 1], plus the recurrent-style ``state``
+    (per-environment memory; reset where ``episode_start`` is True)."""
+
+    name = "scripted"
+
+    def __init__(self, config: Any = None):
+        self.config = config
+        cp = control_parameters(config)
+        self.omega_min = float(cp["omega_min"])
+        self.omega_max = float(cp["omega_max"])
+        self.max_domega = float(cp["max_domega"])
+        self.action_mode = str(cp["action_mode"])
+        self.max_steps = int(cp["max_steps"])
+
+    # ---- conversions ----------------------------------------------------------------------------
+    def omega_from_obs(self, obs: np.ndarray) -> np.ndarray:
+        """Meshing frequency (n,) from observations (n, obs_dim)."""
+        x = np.asarray(obs, float)[:, OBS_OMEGA]
+        return self.omega_min + 0.5 * (x + 1.0) * (self.omega_max - self.omega_min)
+
+    def action_to(self, omega: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """Action (n,) that moves omega towards ``target`` as fast as the rate limit allows."""
+        target = np.clip(np.asarray(target, float), self.omega_min, self.omega_max)
+        if self.action_mode == "delta":
+            a = (target - omega) / self.max_domega
+        else:  # target mode: the environment rate-limits the move itself
+            a = 2.0 * (target - self.omega_min) / (self.omega_max - self.omega_min) - 1.0
+        return np.clip(a, -1.0, 1.0)
+
+    # ---- SB3 interface ----------------------------------------------------------------------------
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
+        """Actions for the observation(s); ``state`` carries per-environment memory."""
+        obs = np.asarray(observation, dtype=np.float64)
+        single = obs.ndim == 1
+        if single:
+            obs = obs[None, :]
+        if obs.ndim != 2 or not np.all(np.isfinite(obs)):
+            raise ValueError(f"observation must be a finite array of shape (obs_dim,) or (n, obs_dim), got {obs.shape}")
+        n = obs.shape[0]
+        state = self._state(state, n, episode_start)
+        omega = self.omega_from_obs(obs)
+        target, state = self._targets(omega, obs, state)
+        a = self.action_to(omega, target).astype(np.float32).reshape(n, 1)
+        return (a[0] if single else a), state
+
+    def _state(self, state: Any, n: int, episode_start: np.ndarray | None) -> Any:
+        """Fresh state when None or of another batch size; reset rows where an episode starts."""
+        fresh = self.initial_state(n)
+        if state is None or not isinstance(state, dict) or len(next(iter(state.values()), [])) != n:
+            return fresh
+        if episode_start is not None:
+            es = np.asarray(episode_start, bool).reshape(-1)
+            if es.shape == (n,) and es.any():
+                state = {k: v.copy() for k, v in state.items()}
+                for k in state:
+                    state[k][es] = fresh[k][es]
+        return state
+
+    def initial_state(self, n: int) -> dict[str, np.ndarray]:
+        """Per-environment memory at the start of an episode (subclasses extend it)."""
+        return {"t": np.zeros(n, np.int64)}
+
+    def _targets(self, omega: np.ndarray, obs: np.ndarray, state: dict) -> tuple[np.ndarray, dict]:
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.name!r})"
+
+
+class ConstantSpeed(ScriptedPolicy):
+    """Go to ``omega`` at the maximum rate and hold it."""
+
+    def __init__(self, omega: float, config: Any = None, name: str | None = None):
+        super().__init__(config)
+        w = float(omega)
+        if not np.isfinite(w) or not self.omega_min <= w <= self.omega_max:
+            raise ValueError(f"constant speed omega must be in [{self.omega_min:g}, {self.omega_max:g}], got {omega!r}")
+        self.omega = w
+        self.name = name or f"constant:{w:g}"
+
+    def _targets(self, omega, obs, state):
+        state["t"] = state["t"] + 1
+        return np.full_like(omega, self.omega), state
+
+
+class SlowRamp(ScriptedPolicy):
+    """Ramp from wherever the episode starts towards ``target`` at ``rate_fraction`` of the
+    maximum rate (default a quarter: 0.0125 per step with the defaults), then hold."""
+
+    def __init__(self, target: float, config: Any = None, rate_fraction: float = 0.25, name: str | None = None):
+        super().__init__(config)
+        if not 0.0 < float(rate_fraction) <= 1.0:
+            raise ValueError(f"ramp rate_fraction must be in (0, 1], got {rate_fraction!r}")
+        w = float(target)
+        if not np.isfinite(w) or not self.omega_min <= w <= self.omega_max:
+            raise ValueError(f"ramp target must be in [{self.omega_min:g}, {self.omega_max:g}], got {target!r}")
+        self.target = w
+        self.rate = float(rate_fraction) * self.max_domega
+        self.name = name or f"ramp:{w:g}:{rate_fraction:g}"
+
+    def _targets(self, omega, obs, state):
+        state["t"] = state["t"] + 1
+        step = np.clip(self.target - omega, -self.rate, self.rate)
+        return omega + step, state
+
+
+class HillClimber(ScriptedPolicy):
+    """Greedy vibration-feedback controller.
+
+    Each step, the motion counts as *clean* when the periodicity defect is below ``defect_tol``
+    (in units of the environment's defect_scale), the contact-loss fraction below ``contact_tol``
+    and there were no impacts. Clean: raise omega by ``climb`` x max rate, but not above
+    ``ceiling - margin`` (the ceiling is the lowest omega at which trouble was seen in this
+    episode). Not clean: remember the ceiling and back off at the full rate. Greedy by design: it
+    stays in the first clean window it finds above (or below) its start.
+    """
+
+    name = "hill-climber"
+
+    def __init__(
+        self,
+        config: Any = None,
+        climb: float = 0.5,
+        margin: float | None = None,
+        defect_tol: float = 0.5,
+        contact_tol: float = 0.02,
+    ):
+        super().__init__(config)
+        self.climb = float(climb)
+        self.margin = 2.0 * self.max_domega if margin is None else float(margin)
+        self.defect_obs_tol = float(np.log1p(defect_tol))
+        self.contact_tol = float(contact_tol)
+
+    def initial_state(self, n: int) -> dict[str, np.ndarray]:
+        return {"t": np.zeros(n, np.int64), "ceiling": np.full(n, np.inf)}
+
+    def clean(self, obs: np.ndarray) -> np.ndarray:
+        """(n,) bool: the last step showed periodic, contact-free, impact-free motion."""
+        return (
+            (obs[:, OBS_DEFECT] <= self.defect_obs_tol)
+            & (obs[:, OBS_CONTACT] <= self.contact_tol)
+            & (obs[:, OBS_DRIVE_IMPACTS] <= 0.0)
+            & (obs[:, OBS_BACK_IMPACTS] <= 0.0)
+        )
+
+    def _targets(self, omega, obs, state):
+        ok = self.clean(obs)
+        state["t"] = state["t"] + 1
+        ceiling = np.where(ok, state["ceiling"], np.minimum(state["ceiling"], omega))
+        state["ceiling"] = ceiling
+        up = np.minimum(omega + self.climb * self.max_domega, ceiling - self.margin)
+        hold_or_up = np.maximum(up, np.minimum(omega, ceiling - self.margin))
+        target = np.where(ok, hold_or_up, omega - self.max_domega)
+        return target, state
+
+
+__all__ = ["ConstantSpeed", "HillClimber", "ScriptedPolicy", "SlowRamp"]

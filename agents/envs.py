@@ -1,0 +1,163 @@
+"""Environment construction for training and evaluation: configs to/from JSON, vector envs for SB3.
+
+The environment is ``GearSpeed-v0`` (``gear_env.env.GearSpeedEnv`` with its frozen
+``GearSpeedConfig``); its native vector form ``gear_env.vector_env.GearSpeedVectorEnv`` steps every
+sub-environment in one numba call and is presented to stable-baselines3 through the adapter in
+that module. Any other Gymnasium id (e.g. ``Pendulum-v1``) is accepted as a stand-in so the
+training plumbing can be tested without the gear model; it is wrapped in SB3's ``DummyVecEnv``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+GEAR_ENV_ID = "GearSpeed-v0"
+
+
+# --------------------------------------------------------------------------------------------------
+# configuration
+# --------------------------------------------------------------------------------------------------
+def _config_class() -> Any:
+    from gear_env.env import GearSpeedConfig
+
+    return GearSpeedConfig
+
+
+def config_to_dict(cfg: Any) -> dict[str, Any]:
+    """A JSON-ready dict of an environment config (GearSpeedConfig, dataclass or mapping)."""
+    if cfg is None:
+        return {}
+    if isinstance(cfg, Mapping):
+        return json.loads(json.dumps(dict(cfg), default=_jsonable))
+    for meth in ("to_dict", "as_dict"):
+        f = getattr(cfg, meth, None)
+        if callable(f):
+            return json.loads(json.dumps(f(), default=_jsonable))
+    if dataclasses.is_dataclass(cfg) and not isinstance(cfg, type):
+        return json.loads(json.dumps(dataclasses.asdict(cfg), default=_jsonable))
+    raise TypeError(f"cannot serialise environment config of type {type(cfg).__name__}")
+
+
+def _jsonable(obj: Any) -> Any:
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return dataclasses.asdict(obj)
+    for meth in ("to_dict", "as_dict"):
+        f = getattr(obj, meth, None)
+        if callable(f):
+            return f()
+    if isinstance(obj, (tuple, set)):
+        return list(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def make_config(env_id: str, cfg: Any = None) -> Any:
+    """The config object the environment takes: a ``GearSpeedConfig`` for GearSpeed-v0 (from a
+    dict, an existing config or None = defaults), a plain dict for stand-in environments."""
+    if env_id != GEAR_ENV_ID:
+        return dict(cfg or {})
+    cls = _config_class()
+    if cfg is None:
+        return cls()
+    if isinstance(cfg, cls):
+        return cfg
+    if isinstance(cfg, Mapping):
+        return cls.from_kwargs(dict(cfg))
+    raise TypeError(f"environment config must be a GearSpeedConfig or a dict, got {type(cfg).__name__}")
+
+
+def load_config_file(path: str | os.PathLike) -> dict[str, Any]:
+    """Read an environment config JSON file (a flat dict of GearSpeedConfig fields).
+
+    A run folder's config.json is accepted too (its ``env_config`` is used)."""
+    p = Path(path)
+    if p.is_dir():
+        p = p / "config.json"
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError as exc:
+        raise ValueError(f"--config: file {str(path)!r} does not exist") from exc
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"--config: cannot read {str(path)!r} as JSON: {exc}") from exc
+    if isinstance(data, dict) and "env_config" in data and "format" in data:
+        data = data["env_config"]
+    if not isinstance(data, dict):
+        raise ValueError(f"--config: {str(path)!r} must hold a JSON object of config fields")
+    return data
+
+
+# --------------------------------------------------------------------------------------------------
+# environments
+# --------------------------------------------------------------------------------------------------
+def make_env(env_id: str, cfg: Any = None, **kwargs: Any) -> Any:
+    """One Gymnasium environment (``gym.make``) for ``env_id`` with config ``cfg``."""
+    import gymnasium as gym
+
+    import gear_env  # noqa: F401  (registers GearSpeed-v0)
+
+    if env_id == GEAR_ENV_ID:
+        from gear_env.env import GearSpeedEnv
+
+        return GearSpeedEnv(make_config(env_id, cfg), **kwargs)
+    return gym.make(env_id, **dict(cfg or {}), **kwargs)
+
+
+def make_sb3_vec_env(env_id: str, cfg: Any, num_envs: int, seed: int | None) -> Any:
+    """A stable-baselines3 ``VecEnv`` with ``num_envs`` sub-environments, seeded with ``seed``.
+
+    For GearSpeed-v0 this is the native vector env behind its SB3 adapter (one numba call per
+    step for all sub-environments); for stand-ins it is a ``DummyVecEnv``."""
+    if not isinstance(num_envs, int) or num_envs < 1:
+        raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    if env_id == GEAR_ENV_ID:
+        venv = _gear_sb3_vec_env(make_config(env_id, cfg), num_envs)
+    else:
+        from stable_baselines3.common.env_util import make_vec_env
+
+        venv = make_vec_env(env_id, n_envs=num_envs, env_kwargs=dict(cfg or {}))
+    if seed is not None:
+        venv.seed(int(seed))
+    return venv
+
+
+def _gear_sb3_vec_env(config: Any, num_envs: int) -> Any:
+    from gear_env.vector_env import SB3VecEnvAdapter
+
+    return SB3VecEnvAdapter(num_envs=num_envs, config=config)
+
+
+def control_parameters(cfg: Any) -> dict[str, Any]:
+    """The action/observation conventions of a GearSpeed config that scripted policies need.
+
+    Returns ``omega_min``, ``omega_max`` (observation[0] maps [omega_min, omega_max] linearly to
+    [-1, 1]), ``max_domega`` (largest change of omega per step; action 1 in delta mode),
+    ``action_mode`` ("delta" or "target") and ``max_steps`` (episode length)."""
+    c = make_config(GEAR_ENV_ID, cfg)
+    return {
+        "omega_min": float(c.omega_min),
+        "omega_max": float(c.omega_max),
+        "max_domega": float(c.max_domega),
+        "action_mode": str(c.action_mode),
+        "max_steps": int(c.max_steps),
+    }
+
+
+__all__ = [
+    "GEAR_ENV_ID",
+    "config_to_dict",
+    "control_parameters",
+    "load_config_file",
+    "make_config",
+    "make_env",
+    "make_sb3_vec_env",
+]

@@ -1,0 +1,122 @@
+"""Policy specs -> policy objects with the SB3 ``predict`` interface (used by ``gear-env evaluate``).
+
+Specs (case-sensitive):
+
+==========================  ===========================================================================
+``pretrained``              the small PPO policy shipped in ``gear_env/data/pretrained/``
+``RUN_DIR`` (a folder)      a training run folder (model.zip + vecnormalize.pkl + config.json)
+``RUN_DIR/best_model.zip``  the best evaluation of a run (also ``RUN_DIR/checkpoints/ckpt_N.zip``)
+``oracle``                  dynamic-programming schedule on the simulator's steady reward map
+``constant-best``           go to the omega of best steady reward and hold it
+``constant:W``              go to omega = W and hold it (e.g. ``constant:1.2``)
+``ramp`` / ``ramp:W[:F]``   slow ramp to the best omega (or W) at fraction F of the max rate (0.25)
+``hill-climber``            greedy vibration-feedback controller
+``random``                  uniform random actions (seeded; a sanity floor)
+==========================  ===========================================================================
+
+A trained model is checked against the environment it is evaluated on: a model trained on another
+observation layout raises a clear ``ValueError``.
+"""
+
+from __future__ import annotations
+
+import os
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+NAMES = ("pretrained", "oracle", "constant-best", "constant:W", "ramp", "ramp:W[:F]", "hill-climber", "random")
+
+
+def pretrained_dir() -> Path:
+    """Folder of the shipped pretrained policy (a run folder without checkpoints)."""
+    return Path(str(resources.files("gear_env") / "data" / "pretrained"))
+
+
+class RandomPolicy:
+    """Uniform random actions in [-1, 1] (seeded; ``deterministic`` is ignored)."""
+
+    name = "random"
+
+    def __init__(self, seed: int = 0):
+        self.rng = np.random.default_rng(seed)
+
+    def predict(
+        self,
+        observation: np.ndarray,
+        state: Any = None,
+        episode_start: np.ndarray | None = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
+        """Random actions, shape (1,) for one observation or (n, 1) for a batch."""
+        obs = np.asarray(observation)
+        n = 1 if obs.ndim == 1 else obs.shape[0]
+        a = self.rng.uniform(-1.0, 1.0, size=(n, 1)).astype(np.float32)
+        return (a[0] if obs.ndim == 1 else a), state
+
+
+def _float(text: str, spec: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"policy spec {spec!r}: {text!r} is not a number") from None
+
+
+def resolve_policy(spec: str, config: Any = None) -> Any:
+    """The policy named by ``spec`` for the environment ``config`` (GearSpeedConfig, dict or None).
+
+    Returns an object with ``predict(observation, state=None, episode_start=None,
+    deterministic=True) -> (actions, state)`` and a ``name``. Raises ``ValueError`` for an unknown
+    spec (listing the valid ones), a missing/corrupt run folder, or a model whose observation or
+    action space does not match the environment."""
+    if not isinstance(spec, str) or not spec.strip():
+        raise ValueError(f"policy spec must be a non-empty string, got {spec!r}; valid: {', '.join(NAMES)} or RUN_DIR")
+    s = spec.strip()
+    from .baselines import ConstantSpeed, HillClimber, SlowRamp
+    from .oracle import OraclePolicy, best_constant_omega
+
+    if s == "oracle":
+        return OraclePolicy(config)
+    if s == "constant-best":
+        return ConstantSpeed(best_constant_omega(config), config, name="constant-best")
+    if s.startswith("constant:"):
+        return ConstantSpeed(_float(s.split(":", 1)[1], s), config)
+    if s == "ramp" or s.startswith("ramp:"):
+        parts = s.split(":")[1:]
+        if len(parts) > 2:
+            raise ValueError(f"policy spec {s!r}: expected ramp, ramp:W or ramp:W:F")
+        target = _float(parts[0], s) if parts else best_constant_omega(config)
+        frac = _float(parts[1], s) if len(parts) > 1 else 0.25
+        return SlowRamp(target, config, rate_fraction=frac, name="ramp" if not parts else None)
+    if s in ("hill-climber", "hillclimber", "hill_climber"):
+        return HillClimber(config)
+    if s == "random" or s.startswith("random:"):
+        return RandomPolicy(int(_float(s.split(":", 1)[1], s)) if ":" in s else 0)
+    from .trained import load_trained_policy
+
+    if s == "pretrained":
+        d = pretrained_dir()
+        if not (d / "model.zip").is_file():
+            raise ValueError(f"the pretrained policy is not installed ({str(d)!r} has no model.zip)")
+        return load_trained_policy(d, config if config is not None else _stored_config(d), name="pretrained")
+    if os.path.isdir(s) or os.sep in s or s.endswith(".zip"):
+        path, model_file = Path(s), "model.zip"
+        if path.suffix == ".zip":  # RUN_DIR/best_model.zip or RUN_DIR/checkpoints/ckpt_<steps>.zip
+            if path.parent.name == "checkpoints":
+                path, model_file = path.parent.parent, f"checkpoints/{path.name}"
+            else:
+                path, model_file = path.parent, path.name
+        cfg = config if config is not None else _stored_config(path)
+        return load_trained_policy(path, cfg, name=Path(s).name or s, model_file=model_file)
+    raise ValueError(f"unknown policy {spec!r}; valid: {', '.join(NAMES)}, or a run folder (RUN_DIR)")
+
+
+def _stored_config(run_dir: Path) -> Any:
+    from .runs import RunFolder
+
+    return RunFolder(run_dir).read_config()["env_config"]
+
+
+__all__ = ["NAMES", "RandomPolicy", "pretrained_dir", "resolve_policy"]

@@ -1,0 +1,16 @@
+#!/usr/bin/env python
+"""Train a PPO speed-scheduling agent on GearSpeed-v0 (the same as ``gear-env train``).
+
+Example (the run reported in docs/RESULTS.md)::
+
+    python train.py --out runs/ppo_default --timesteps 200000 --num-envs 8 --seed 0
+
+See docs/TRAINING.md for every option, resuming, and evaluation.
+"""
+
+import sys
+
+from agents.ppo import main
+
+if __name__ == "__main__":
+    sys.exit(main())
