@@ -92,6 +92,27 @@ def _check_state(state: Any) -> np.ndarray:
     return arr.copy()
 
 
+AMPLITUDE_STATS = {
+    "U": (K.ST_U_MAX, K.ST_U_MIN),
+    "delta": (K.ST_D_MAX, K.ST_D_MIN),
+    "bd": (K.ST_BD_MAX, K.ST_BD_MIN),
+    "psi": (K.ST_PSI_MAX, K.ST_PSI_MIN),
+    "force": (K.ST_F_MAX, K.ST_F_MIN),
+}
+"""Channel name -> (max, min) indices of the kernels' interval statistics vector."""
+
+
+def stats_amplitude(stats: np.ndarray, name: str) -> float:
+    """Half peak-to-peak of a channel from an interval statistics vector (``kernels.ST_*``).
+
+    ``name``: 'U', 'delta', 'bd' (b0 units), 'psi' [rad] or 'force' (k_m0 b0 units).
+    """
+    if name not in AMPLITUDE_STATS:
+        raise ValueError(f"amplitude name must be one of {sorted(AMPLITUDE_STATS)}, got {name!r}")
+    hi, lo = AMPLITUDE_STATS[name]
+    return float(0.5 * (stats[hi] - stats[lo]))
+
+
 @dataclass
 class IntervalStats:
     """Statistics of one advance of :class:`GearSimulator` (no time series).
@@ -156,17 +177,7 @@ class IntervalStats:
 
     def amplitude(self, name: str) -> float:
         """Half peak-to-peak of 'U', 'delta', 'bd', 'psi' or 'force' over the interval."""
-        idx = {
-            "U": (K.ST_U_MAX, K.ST_U_MIN),
-            "delta": (K.ST_D_MAX, K.ST_D_MIN),
-            "bd": (K.ST_BD_MAX, K.ST_BD_MIN),
-            "psi": (K.ST_PSI_MAX, K.ST_PSI_MIN),
-            "force": (K.ST_F_MAX, K.ST_F_MIN),
-        }
-        if name not in idx:
-            raise ValueError(f"amplitude name must be one of {sorted(idx)}, got {name!r}")
-        hi, lo = idx[name]
-        return float(0.5 * (self.stats[hi] - self.stats[lo]))
+        return stats_amplitude(self.stats, name)
 
 
 class GearSimulator:

@@ -22,7 +22,7 @@ import numpy as np
 
 from .. import kernels as K
 from ..params import GearParams
-from ..simulator import STATE_NAMES
+from ..simulator import STATE_NAMES, stats_amplitude
 
 FORMAT_NAME = "gear-env-sweep"
 FORMAT_VERSION = 1
@@ -337,14 +337,8 @@ class PointResult:
     periods_recorded: int
 
     def amplitude(self, name: str) -> float:
-        idx = {
-            "U": (K.ST_U_MAX, K.ST_U_MIN),
-            "delta": (K.ST_D_MAX, K.ST_D_MIN),
-            "bd": (K.ST_BD_MAX, K.ST_BD_MIN),
-            "psi": (K.ST_PSI_MAX, K.ST_PSI_MIN),
-            "force": (K.ST_F_MAX, K.ST_F_MIN),
-        }[name]
-        return float(0.5 * (self.stats[idx[0]] - self.stats[idx[1]]))
+        """Half peak-to-peak of a channel over the recorded periods (see ``stats_amplitude``)."""
+        return stats_amplitude(self.stats, name)
 
     @property
     def contact_loss(self) -> float:
