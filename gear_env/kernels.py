@@ -283,84 +283,187 @@ def excitation(phi, c):
     return math.cos(phi + c[C_PHI_E]), math.sin(phi + c[C_PHI_E]), 1.0 + c[C_KAPPA] * math.cos(phi + c[C_PHI_K])
 
 
-@kernel
-def _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, geo, max_iter, tol):
-    """Attempt one Newmark step of length h ending where the excitation is (ce, se, kk), omega w_b.
+@kernel_inline
+def step_consts(c):
+    """The constants one Newmark step needs, as a tuple of scalars (kept in registers).
 
-    On success overwrites x (state) and a (acceleration) and returns (True, F, region, delta,
-    bd); on failure leaves them untouched and returns False first. The geometry at the end of the
-    step (psi = geo[0], sin psi = geo[12], cos psi = geo[13]) is left in ``geo``.
+    (1/eps_p, 1/eps_g, pinion and gear bearing damping and stiffness (natural time), the weights
+    per unit mass, 2 xi_m, F_s, E1, A0, R, 1/R, B_c, sin and cos alpha0, mu, cos and sin phi_e).
     """
-    ep = c[C_EPS_P]
-    eg = c[C_EPS_G]
     sgp = c[C_SIG_P]
     sgg = c[C_SIG_G]
-    c0 = 2.0 * c[C_XI_BP] * sgp
-    c2 = 2.0 * c[C_XI_BG] * sgg
-    k0 = sgp * sgp
-    k2 = sgg * sgg
+    iep = 1.0 / c[C_EPS_P]
+    ieg = 1.0 / c[C_EPS_G]
+    return (
+        iep,
+        ieg,
+        2.0 * c[C_XI_BP] * sgp,
+        2.0 * c[C_XI_BG] * sgg,
+        sgp * sgp,
+        sgg * sgg,
+        -c[C_GP] * iep,
+        -c[C_GG] * ieg,
+        2.0 * c[C_XI_M],
+        c[C_FS],
+        c[C_E1],
+        c[C_A0],
+        c[C_R],
+        1.0 / c[C_R],
+        c[C_BC],
+        c[C_SIN_A0],
+        c[C_COS_A0],
+        c[C_MU],
+        math.cos(c[C_PHI_E]),
+        math.sin(c[C_PHI_E]),
+    )
+
+
+@kernel_inline
+def step_coeffs(h, k):
+    """Newmark coefficients of a step of length h (natural time): (h, beta h^2, gamma h,
+    (1/2 - beta) h^2, (1 - gamma) h, inverse diagonal of the Newton matrix for the pinion and the
+    gear bearings). Loop-invariant while omega is constant."""
     bh2 = BETA * h * h
     gh = GAMMA * h
-    hh = h * h * (0.5 - BETA)
-    h1 = h * (1.0 - GAMMA)
+    idd0 = 1.0 / (1.0 + gh * k[2] + bh2 * k[4])
+    idd2 = 1.0 / (1.0 + gh * k[3] + bh2 * k[5])
+    return h, bh2, gh, h * h * (0.5 - BETA), h * (1.0 - GAMMA), idd0, idd2
+
+
+@kernel_inline
+def geometry_t(q0, q1, q2, q3, k):
+    """Dynamic-model geometry (eqs. 5-8) at positions (X_p, Y_p, X_g, Y_g), no trigonometric call.
+
+    Returns (dB/dX_p, dB/dY_p, dpsi/dX_p, dpsi/dY_p, B_d, sin psi, cos psi); the derivatives
+    with respect to (X_g, Y_g) are their negatives and those with respect to U are zero. Same
+    formulas as :func:`geometry_s` with two divisions instead of four.
+    """
+    A0 = k[11]
+    d1 = A0 - q0 + q2
+    d2 = q1 - q3
+    ad = math.sqrt(d1 * d1 + d2 * d2)
+    iad = 1.0 / ad
+    ca = k[12] * iad
+    s2 = 1.0 - ca * ca
+    if s2 < 1e-30:
+        s2 = 1e-30
+    sa = math.sqrt(s2)
+    ta = sa * ad * k[13]
+    cz = d1 * iad
+    z = -d2 * iad
+    sp = sa * cz + ca * z
+    cp = ca * cz - sa * z
+    bd = k[14] + (ad - A0) * ta
+    inv = 1.0 / (sa * cz)
+    dalpha_dad = ca * iad * cz * inv  # ca / (A_d sa)
+    icz = sa * inv
+    db_dad = ta + (ad - A0) * (1.0 + ta * ta) * dalpha_dad
+    d2a = d2 * iad * iad
+    return (
+        -db_dad * cz,
+        -db_dad * z,
+        -dalpha_dad * cz - d2a,
+        -dalpha_dad * z - (d2a * z + iad) * icz,
+        bd,
+        sp,
+        cp,
+    )
+
+
+@kernel_inline
+def mesh_t(s, ce, se, omega, k, dynamic):
+    """Mesh quantities of a state tuple s = (q0..q4, v0..v4, ...) at one instant.
+
+    Returns (Delta, Delta', B_d, f(Delta), region, sin psi, cos psi, dB/dX_p, dB/dY_p).
+    """
+    q0, q1, q2, q3, q4 = s[0], s[1], s[2], s[3], s[4]
+    v0, v1, v2, v3, v4 = s[5], s[6], s[7], s[8], s[9]
+    dx = q0 - q2
+    dy = q1 - q3
+    e1 = k[10]
+    if dynamic == 0:
+        sp = k[15]
+        cp = k[16]
+        bd = k[14]
+        db0 = 0.0
+        db1 = 0.0
+        delta = dx * sp - dy * cp + q4 - e1 * ce
+        ddelta = (v0 - v2) * sp - (v1 - v3) * cp + v4 + e1 * omega * se
+    else:
+        db0, db1, dp0, dp1, bd, sp, cp = geometry_t(q0, q1, q2, q3, k)
+        delta = dx * sp - dy * cp + q4 - e1 * ce
+        psid = dp0 * (v0 - v2) + dp1 * (v1 - v3)
+        ddelta = (v0 - v2) * sp - (v1 - v3) * cp + v4 + e1 * omega * se + psid * (dx * cp + dy * sp)
+    f, region = backlash(delta, bd)
+    return delta, ddelta, bd, f, region, sp, cp, db0, db1
+
+
+@kernel_inline
+def friction_t(ce, se, k):
+    """[friction extension] mu tanh(10 sin phi) from (cos, sin)(phi + phi_e); 0 when mu = 0."""
+    mu = k[17]
+    if mu == 0.0:
+        return 0.0
+    return mu * math.tanh(FRICTION_SHARPNESS * (se * k[18] - ce * k[19]))
+
+
+@kernel_inline
+def newmark_try_t(s, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
+    """Attempt one Newmark step on the state tuple s = (q (5), v (5), a (5)).
+
+    ``hc`` = :func:`step_coeffs` of the step, ``(ce, se, kk)`` the excitation and ``w_b`` the
+    meshing frequency at its end. Returns (converged, new state tuple, F, region, Delta, B_d,
+    sin psi, cos psi); on failure the state tuple returned is the input one.
+    """
+    iep, ieg, c0, c2, k0, k2, ext1, ext3, xim2, Fs = k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8], k[9]
+    h, bh2, gh, hh, h1, idd0, idd2 = hc
+    a0, a1, a2, a3, a4 = s[10], s[11], s[12], s[13], s[14]
     # predictors
-    qp0 = x[0] + h * x[5] + hh * a[0]
-    qp1 = x[1] + h * x[6] + hh * a[1]
-    qp2 = x[2] + h * x[7] + hh * a[2]
-    qp3 = x[3] + h * x[8] + hh * a[3]
-    qp4 = x[4] + h * x[9] + hh * a[4]
-    vp0 = x[5] + h1 * a[0]
-    vp1 = x[6] + h1 * a[1]
-    vp2 = x[7] + h1 * a[2]
-    vp3 = x[8] + h1 * a[3]
-    vp4 = x[9] + h1 * a[4]
-    a0 = a[0]
-    a1 = a[1]
-    a2 = a[2]
-    a3 = a[3]
-    a4 = a[4]
-    idd0 = 1.0 / (1.0 + gh * c0 + bh2 * k0)  # inverse diagonal of the Newton matrix
-    idd2 = 1.0 / (1.0 + gh * c2 + bh2 * k2)
-    iep = 1.0 / ep
-    ieg = 1.0 / eg
-    ext1 = -c[C_GP] * iep
-    ext3 = -c[C_GG] * ieg
-    fr = friction_factor(ce, se, c)  # [friction extension] tilts the force off the LOA; 0 by default
-    xim2 = 2.0 * c[C_XI_M]
+    qp0 = s[0] + h * s[5] + hh * a0
+    qp1 = s[1] + h * s[6] + hh * a1
+    qp2 = s[2] + h * s[7] + hh * a2
+    qp3 = s[3] + h * s[8] + hh * a3
+    qp4 = s[4] + h * s[9] + hh * a4
+    vp0 = s[5] + h1 * a0
+    vp1 = s[6] + h1 * a1
+    vp2 = s[7] + h1 * a2
+    vp3 = s[8] + h1 * a3
+    vp4 = s[9] + h1 * a4
+    fr = friction_t(ce, se, k)  # [friction extension] tilts the force off the LOA; 0 by default
     cd = gh * xim2
-    q0 = qp0 + bh2 * a0
-    q1 = qp1 + bh2 * a1
-    q2 = qp2 + bh2 * a2
-    q3 = qp3 + bh2 * a3
-    q4 = qp4 + bh2 * a4
-    v0 = vp0 + gh * a0
-    v1 = vp1 + gh * a1
-    v2 = vp2 + gh * a2
-    v3 = vp3 + gh * a3
-    v4 = vp4 + gh * a4
-    delta, ddelta, bd, f, region = mesh_state_s(q0, q1, q2, q3, q4, v0, v1, v2, v3, v4, ce, se, w_b, c, dynamic, geo)
+    t = (
+        qp0 + bh2 * a0,
+        qp1 + bh2 * a1,
+        qp2 + bh2 * a2,
+        qp3 + bh2 * a3,
+        qp4 + bh2 * a4,
+        vp0 + gh * a0,
+        vp1 + gh * a1,
+        vp2 + gh * a2,
+        vp3 + gh * a3,
+        vp4 + gh * a4,
+    )
+    delta, ddelta, bd, f, region, sp, cp, db0, db1 = mesh_t(t, ce, se, w_b, k, dynamic)
     F = xim2 * ddelta + kk * f
     for _it in range(max_iter):
-        sp = geo[12]
-        cp = geo[13]
         w0 = (sp - fr * cp) * iep
         w1 = -(cp + fr * sp) * iep
         w2 = -(sp - fr * cp) * ieg
         w3 = (cp + fr * sp) * ieg
         # residual r = a + C v + K q + w F - ext
-        r0 = a0 + c0 * v0 + k0 * q0 + w0 * F
-        r1 = a1 + c0 * v1 + k0 * q1 + w1 * F - ext1
-        r2 = a2 + c2 * v2 + k2 * q2 + w2 * F
-        r3 = a3 + c2 * v3 + k2 * q3 + w3 * F - ext3
-        r4 = a4 + F - c[C_FS]
+        r0 = a0 + c0 * t[5] + k0 * t[0] + w0 * F
+        r1 = a1 + c0 * t[6] + k0 * t[1] + w1 * F - ext1
+        r2 = a2 + c2 * t[7] + k2 * t[2] + w2 * F
+        r3 = a3 + c2 * t[8] + k2 * t[3] + w3 * F - ext3
+        r4 = a4 + F - Fs
         # u = dF/da = bh2 kk df/dq + gh 2 xi_m g, g = dDelta/dq (force direction frozen)
         cs = bh2 * kk if region != 0 else 0.0
         rr = cs * float(region)
         cg = cd + cs
-        u0 = cg * sp - rr * geo[2]
-        u1 = -cg * cp - rr * geo[3]
-        u2 = -cg * sp - rr * geo[4]
-        u3 = cg * cp - rr * geo[5]
+        u0 = cg * sp - rr * db0
+        u1 = -cg * cp - rr * db1
+        u2 = -cg * sp + rr * db0
+        u3 = cg * cp + rr * db1
         u4 = cg
         # Sherman-Morrison: (D + w u^T) d = -r, D = diag(dd0, dd0, dd2, dd2, 1)
         y0 = -r0 * idd0
@@ -385,47 +488,35 @@ def _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, geo, max_iter, tol):
         a4 += e4
         dmax = max(abs(e0), abs(e1), abs(e2), abs(e3), abs(e4))
         if not math.isfinite(dmax):
-            return False, F, region, delta, bd
-        q0 = qp0 + bh2 * a0
-        q1 = qp1 + bh2 * a1
-        q2 = qp2 + bh2 * a2
-        q3 = qp3 + bh2 * a3
-        q4 = qp4 + bh2 * a4
-        v0 = vp0 + gh * a0
-        v1 = vp1 + gh * a1
-        v2 = vp2 + gh * a2
-        v3 = vp3 + gh * a3
-        v4 = vp4 + gh * a4
-        old_region = region
-        delta, ddelta, bd, f, region = mesh_state_s(
-            q0, q1, q2, q3, q4, v0, v1, v2, v3, v4, ce, se, w_b, c, dynamic, geo
+            return False, s, F, region, delta, bd, sp, cp
+        t = (
+            qp0 + bh2 * a0,
+            qp1 + bh2 * a1,
+            qp2 + bh2 * a2,
+            qp3 + bh2 * a3,
+            qp4 + bh2 * a4,
+            vp0 + gh * a0,
+            vp1 + gh * a1,
+            vp2 + gh * a2,
+            vp3 + gh * a3,
+            vp4 + gh * a4,
         )
+        old_region = region
+        delta, ddelta, bd, f, region, sp, cp, db0, db1 = mesh_t(t, ce, se, w_b, k, dynamic)
         F = xim2 * ddelta + kk * f
         # The backlash force is piecewise linear: for the constant model the update is exact
         # once the region it assumed is the region it lands in. The dynamic model's geometry is
         # mildly nonlinear: its update is accepted when small (tol) or when the position change
         # of the last Newton update, bh2 * dmax, is below DQ_LINEAR, where the neglected
         # quadratic term (curvature of B_d(q) ~ 1/A0 ~ 1.5e-4 per b0) is below 1e-12.
-        if region == old_region:
-            amax = max(abs(a0), abs(a1), abs(a2), abs(a3), abs(a4))
-            if dynamic == 0 or dmax <= tol * (1.0 + amax) or bh2 * dmax <= DQ_LINEAR:
-                x[0] = q0
-                x[1] = q1
-                x[2] = q2
-                x[3] = q3
-                x[4] = q4
-                x[5] = v0
-                x[6] = v1
-                x[7] = v2
-                x[8] = v3
-                x[9] = v4
-                a[0] = a0
-                a[1] = a1
-                a[2] = a2
-                a[3] = a3
-                a[4] = a4
-                return True, F, region, delta, bd
-    return False, F, region, delta, bd
+        if region == old_region and (
+            dynamic == 0
+            or bh2 * dmax <= DQ_LINEAR
+            or dmax <= tol * (1.0 + max(abs(a0), abs(a1), abs(a2), abs(a3), abs(a4)))
+        ):
+            s1 = (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], a0, a1, a2, a3, a4)
+            return True, s1, F, region, delta, bd, sp, cp
+    return False, s, F, region, delta, bd, sp, cp
 
 
 DQ_LINEAR = 1e-4
@@ -436,49 +527,99 @@ WORK_SIZE = 80
 
 
 @kernel
-def newmark_step(x, a, phi_a, dphi, ce, se, kk, w_a, w_b, c, dynamic, work, max_iter, tol):
-    """Advance (x, a) by a phase increment dphi while omega goes linearly in time w_a -> w_b.
-
-    ``ce, se, kk`` is the excitation at the end phase phi_a + dphi (see :func:`excitation`).
-    Returns (status, F, region, delta, bd, split) with the mesh quantities at the end of the
-    step; ``split`` is 1 when the step had to be divided for Newton to converge. ``work`` (length
-    WORK_SIZE, zero-initialised) holds the geometry at the end of the step (psi = work[0]).
-    """
-    h = 2.0 * dphi / (w_a + w_b)
-    ok, F, region, delta, bd = _newmark_try(x, a, ce, se, kk, w_b, h, c, dynamic, work, max_iter, tol)
-    if ok:
-        work[0] = psi_of(work, c, dynamic)
-        return OK, F, region, delta, bd, 0
-    # split into 2^level sub-steps; omega^2 is linear in phase inside the step
-    xs = work[60:70]
-    as_ = work[70:75]
+def split_step_t(s, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol):
+    """Fallback of :func:`newmark_step_t`: the step divided into 2, 4, ... 2^6 sub-steps (omega^2
+    linear in phase inside it) until Newton converges in every sub-step. Same return as
+    :func:`newmark_step_t`."""
+    F = 0.0
+    region = 0
+    delta = 0.0
+    bd = 0.0
+    sp = 0.0
+    cp = 0.0
     for level in range(1, MAX_SPLIT_LEVEL + 1):
         nsub = 1 << level
-        for i in range(NSTATE):
-            xs[i] = x[i]
-        for i in range(NDOF):
-            as_[i] = a[i]
+        ss = s
         good = True
         sub = dphi / nsub
         wprev = w_a
-        for k in range(nsub):
-            frac = (k + 1.0) / nsub
+        for j in range(nsub):
+            frac = (j + 1.0) / nsub
             wk = math.sqrt(w_a * w_a + (w_b * w_b - w_a * w_a) * frac)
-            hk = 2.0 * sub / (wprev + wk)
-            cek, sek, kkk = excitation(phi_a + sub * (k + 1.0), c)
-            ok, F, region, delta, bd = _newmark_try(xs, as_, cek, sek, kkk, wk, hk, c, dynamic, work, max_iter, tol)
+            hc = step_coeffs(2.0 * sub / (wprev + wk), k)
+            cek, sek, kkk = excitation(phi_a + sub * (j + 1.0), c)
+            ok, ss, F, region, delta, bd, sp, cp = newmark_try_t(ss, cek, sek, kkk, wk, hc, k, dynamic, max_iter, tol)
             if not ok:
                 good = False
                 break
             wprev = wk
         if good:
-            for i in range(NSTATE):
-                x[i] = xs[i]
-            for i in range(NDOF):
-                a[i] = as_[i]
-            work[0] = psi_of(work, c, dynamic)
-            return OK, F, region, delta, bd, 1
-    return NEWTON_FAILED, F, region, delta, bd, 1
+            return OK, ss, F, region, delta, bd, sp, cp, 1
+    return NEWTON_FAILED, s, F, region, delta, bd, sp, cp, 1
+
+
+@kernel_inline
+def newmark_step_t(s, phi_a, dphi, ce, se, kk, w_a, w_b, hc, c, k, dynamic, max_iter, tol):
+    """Advance the state tuple s = (q, v, a) by a phase increment dphi (omega: w_a -> w_b).
+
+    ``(ce, se, kk)`` is the excitation at the end phase phi_a + dphi and ``hc`` the step
+    coefficients (:func:`step_coeffs` of h = 2 dphi / (w_a + w_b)). Returns (status, new state
+    tuple, F, region, Delta, B_d, sin psi, cos psi, split), split = 1 if Newton needed sub-steps.
+    """
+    ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(s, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol)
+    if ok:
+        return OK, s1, F, region, delta, bd, sp, cp, 0
+    return split_step_t(s, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol)
+
+
+@kernel_inline
+def load_t(x, a):
+    """State tuple (q, v, a) from the arrays x (10) and a (5)."""
+    return (x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9], a[0], a[1], a[2], a[3], a[4])
+
+
+@kernel_inline
+def store_t(s, x, a):
+    """Write the state tuple back into x (10) and a (5)."""
+    for i in range(NSTATE):
+        x[i] = s[i]
+    for i in range(NDOF):
+        a[i] = s[NSTATE + i]
+
+
+@kernel_inline
+def psi_t(sp, cp, c, dynamic):
+    """Meshing angle psi [rad] from sin and cos psi (alpha0 exactly for the constant model)."""
+    if dynamic == 0:
+        return c[C_ALPHA0]
+    return math.atan2(sp, cp)
+
+
+@kernel
+def newmark_step(x, a, phi_a, dphi, ce, se, kk, w_a, w_b, c, dynamic, work, max_iter, tol):
+    """Array form of one step: advance (x, a) in place by a phase increment dphi while omega goes
+    linearly in time w_a -> w_b; ``ce, se, kk`` is the excitation at the end phase.
+
+    Returns (status, F, region, delta, bd, split) with the mesh quantities at the end of the
+    step; psi at the end of the step is written to work[0].
+    """
+    k = step_consts(c)
+    hc = step_coeffs(2.0 * dphi / (w_a + w_b), k)
+    st, s, F, region, delta, bd, sp, cp, split = newmark_step_t(
+        load_t(x, a), phi_a, dphi, ce, se, kk, w_a, w_b, hc, c, k, dynamic, max_iter, tol
+    )
+    if st == OK:
+        store_t(s, x, a)
+        work[0] = psi_t(sp, cp, c, dynamic)
+    return st, F, region, delta, bd, split
+
+
+@kernel_inline
+def _diverged_t(s):
+    """True if a state tuple holds a non-finite value or |q|_1 + |v|_1 > DIVERGENCE_LIMIT."""
+    m = abs(s[0]) + abs(s[1]) + abs(s[2]) + abs(s[3]) + abs(s[4])
+    m += abs(s[5]) + abs(s[6]) + abs(s[7]) + abs(s[8]) + abs(s[9])
+    return not (m <= DIVERGENCE_LIMIT)
 
 
 @kernel_inline
@@ -526,6 +667,7 @@ def integrate_record(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, out, ma
     """
     work = np.zeros(WORK_SIZE)
     tab = _excitation_table(phi0, n_steps, c)
+    k = step_consts(c)
     total = n_periods * n_steps
     dphi = TWO_PI / n_steps
     ww = w1 * w1 - w0 * w0
@@ -540,32 +682,40 @@ def integrate_record(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, out, ma
     out[0, REC_PSI] = work[0]
     out[0, REC_FORCE] = F0
     out[0, REC_REGION] = region
-    s = 0.0
+    s = load_t(x, a)
+    el = 0.0
     wa = w0
-    for k in range(total):
-        wb = math.sqrt(w0 * w0 + ww * (k + 1.0) / total)
-        j = (k + 1) % n_steps
-        st, F, region, delta, bd, split = newmark_step(
-            x, a, phi0 + dphi * k, dphi, tab[j, 0], tab[j, 1], tab[j, 2], wa, wb, c, dynamic, work, max_iter, tol
+    hc = step_coeffs(dphi / w0, k)
+    for j in range(total):
+        wb = w0 if ww == 0.0 else math.sqrt(w0 * w0 + ww * (j + 1.0) / total)
+        if ww != 0.0:
+            hc = step_coeffs(2.0 * dphi / (wa + wb), k)
+        m = (j + 1) % n_steps
+        st, s1, F, region, delta, bd, sp, cp, split = newmark_step_t(
+            s, phi0 + dphi * j, dphi, tab[m, 0], tab[m, 1], tab[m, 2], wa, wb, hc, c, k, dynamic, max_iter, tol
         )
-        s += 2.0 * dphi / (wa + wb)
+        el += hc[0]
         if st != OK:
-            return st, k + 1, s
-        if _diverged(x):
-            return DIVERGED, k + 1, s
-        r = k + 1
+            store_t(s, x, a)
+            return st, j + 1, el
+        s = s1
+        if _diverged_t(s):
+            store_t(s, x, a)
+            return DIVERGED, j + 1, el
+        r = j + 1
         for i in range(NSTATE):
-            out[r, i] = x[i]
-        out[r, REC_S] = s
-        out[r, REC_PHI] = phi0 + dphi * (k + 1)
+            out[r, i] = s[i]
+        out[r, REC_S] = el
+        out[r, REC_PHI] = phi0 + dphi * (j + 1)
         out[r, REC_OMEGA] = wb
         out[r, REC_DELTA] = delta
         out[r, REC_BD] = bd
-        out[r, REC_PSI] = work[0]
+        out[r, REC_PSI] = psi_t(sp, cp, c, dynamic)
         out[r, REC_FORCE] = F
         out[r, REC_REGION] = region
         wa = wb
-    return OK, total + 1, s
+    store_t(s, x, a)
+    return OK, total + 1, el
 
 
 @kernel
@@ -587,83 +737,136 @@ def integrate_stats(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare
     ``reset_stats``). Time integrals use the trapezoidal rule. omega goes linearly in time from
     w0 to w1 over the interval. Returns (status, periods completed, natural time elapsed).
     ``phi0`` should be a multiple of 2 pi for the samples to lie on the Poincare section.
+
+    The state and the statistics live in local variables (registers) during the loop and are
+    written back at the end, also when the run stops early. psi enters the statistics through
+    sin psi (monotonic in psi, |psi| < pi/2), so no atan2 is evaluated per step.
     """
     work = np.zeros(WORK_SIZE)
     tab = _excitation_table(phi0, n_steps, c)
+    k = step_consts(c)
     if reset_stats:
         _stats_init(stats)
     total = n_periods * n_steps
     dphi = TWO_PI / n_steps
     ww = w1 * w1 - w0 * w0
     F_prev, reg_prev, delta, bd = start_step(x, a, phi0, w0, c, dynamic, work)
+    s = load_t(x, a)
     tr_prev = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
-    s = 0.0
+    # local accumulators (added to / compared with ``stats`` at the end)
+    t_sum = 0.0
+    n_ok = 0.0
+    n_split = 0.0
+    sep_t = 0.0
+    back_t = 0.0
+    back_imp = 0.0
+    drive_imp = 0.0
+    f_sum = 0.0
+    f_sq = 0.0
+    tr_sq = 0.0
+    rp_max = -np.inf
+    f_max = -np.inf
+    f_min = np.inf
+    u_max = -np.inf
+    u_min = np.inf
+    d_max = -np.inf
+    d_min = np.inf
+    bd_max = -np.inf
+    bd_min = np.inf
+    sp_max = -np.inf
+    sp_min = np.inf
+    el = 0.0
     wa = w0
-    for k in range(total):
-        wb = math.sqrt(w0 * w0 + ww * (k + 1.0) / total)
-        j = (k + 1) % n_steps
-        st, F, region, delta, bd, split = newmark_step(
-            x, a, phi0 + dphi * k, dphi, tab[j, 0], tab[j, 1], tab[j, 2], wa, wb, c, dynamic, work, max_iter, tol
+    hc = step_coeffs(dphi / w0, k)
+    status = OK
+    done = n_periods
+    for j in range(total):
+        wb = w0 if ww == 0.0 else math.sqrt(w0 * w0 + ww * (j + 1.0) / total)
+        if ww != 0.0:
+            hc = step_coeffs(2.0 * dphi / (wa + wb), k)
+        m = (j + 1) % n_steps
+        st, s1, F, region, delta, bd, sp, cp, split = newmark_step_t(
+            s, phi0 + dphi * j, dphi, tab[m, 0], tab[m, 1], tab[m, 2], wa, wb, hc, c, k, dynamic, max_iter, tol
         )
-        h = 2.0 * dphi / (wa + wb)
-        s += h
+        h = hc[0]
+        el += h
         if st != OK:
-            return st, k // n_steps, s
-        if _diverged(x):
-            return DIVERGED, k // n_steps, s
-        psi = work[0]
-        stats[ST_TIME] += h
-        stats[ST_STEPS] += 1.0
-        stats[ST_SPLITS] += split
+            status = st
+            done = j // n_steps
+            break
+        s = s1
+        if _diverged_t(s):
+            status = DIVERGED
+            done = j // n_steps
+            break
+        t_sum += h
+        n_ok += 1.0
+        n_split += split
         if region == 0:
-            stats[ST_SEP_TIME] += h
+            sep_t += h
         elif region < 0:
-            stats[ST_BACK_TIME] += h
+            back_t += h
             if reg_prev >= 0:
-                stats[ST_BACK_IMPACTS] += 1.0
+                back_imp += 1.0
         elif reg_prev == 0:
-            stats[ST_DRIVE_IMPACTS] += 1.0
-        stats[ST_F_SUM] += 0.5 * h * (F + F_prev)
-        stats[ST_F_SQ] += 0.5 * h * (F * F + F_prev * F_prev)
-        tr = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
-        stats[ST_TR_SQ] += 0.5 * h * (tr + tr_prev)
-        rp = max(x[0] * x[0] + x[1] * x[1], x[2] * x[2] + x[3] * x[3])
-        if rp > stats[ST_TR_MAX]:
-            stats[ST_TR_MAX] = rp
-        if F > stats[ST_F_MAX]:
-            stats[ST_F_MAX] = F
-        if F < stats[ST_F_MIN]:
-            stats[ST_F_MIN] = F
-        if x[4] > stats[ST_U_MAX]:
-            stats[ST_U_MAX] = x[4]
-        if x[4] < stats[ST_U_MIN]:
-            stats[ST_U_MIN] = x[4]
-        if delta > stats[ST_D_MAX]:
-            stats[ST_D_MAX] = delta
-        if delta < stats[ST_D_MIN]:
-            stats[ST_D_MIN] = delta
-        if bd > stats[ST_BD_MAX]:
-            stats[ST_BD_MAX] = bd
-        if bd < stats[ST_BD_MIN]:
-            stats[ST_BD_MIN] = bd
-        if psi > stats[ST_PSI_MAX]:
-            stats[ST_PSI_MAX] = psi
-        if psi < stats[ST_PSI_MIN]:
-            stats[ST_PSI_MIN] = psi
+            drive_imp += 1.0
+        f_sum += 0.5 * h * (F + F_prev)
+        f_sq += 0.5 * h * (F * F + F_prev * F_prev)
+        rpp = s[0] * s[0] + s[1] * s[1]
+        rpg = s[2] * s[2] + s[3] * s[3]
+        tr = 0.5 * (rpp + rpg)
+        tr_sq += 0.5 * h * (tr + tr_prev)
+        rp_max = max(rp_max, max(rpp, rpg))
+        f_max = max(f_max, F)
+        f_min = min(f_min, F)
+        u_max = max(u_max, s[4])
+        u_min = min(u_min, s[4])
+        d_max = max(d_max, delta)
+        d_min = min(d_min, delta)
+        bd_max = max(bd_max, bd)
+        bd_min = min(bd_min, bd)
+        sp_max = max(sp_max, sp)
+        sp_min = min(sp_min, sp)
         F_prev = F
         tr_prev = tr
         reg_prev = region
-        if j == 0:
-            p = (k + 1) // n_steps - 1
+        if m == 0:
+            p = (j + 1) // n_steps - 1
             for i in range(NSTATE):
-                poincare[p, i] = x[i]
+                poincare[p, i] = s[i]
             poincare[p, PC_DELTA] = delta
             poincare[p, PC_BD] = bd
-            poincare[p, PC_PSI] = psi
+            poincare[p, PC_PSI] = psi_t(sp, cp, c, dynamic)
             poincare[p, PC_FORCE] = F
         wa = wb
-    stats[ST_TR_MAX] = math.sqrt(stats[ST_TR_MAX])
-    return OK, n_periods, s
+    store_t(s, x, a)
+    stats[ST_TIME] += t_sum
+    stats[ST_STEPS] += n_ok
+    stats[ST_SPLITS] += n_split
+    stats[ST_SEP_TIME] += sep_t
+    stats[ST_BACK_TIME] += back_t
+    stats[ST_BACK_IMPACTS] += back_imp
+    stats[ST_DRIVE_IMPACTS] += drive_imp
+    stats[ST_F_SUM] += f_sum
+    stats[ST_F_SQ] += f_sq
+    stats[ST_TR_SQ] += tr_sq
+    if n_ok > 0.0:
+        stats[ST_TR_MAX] = max(stats[ST_TR_MAX], math.sqrt(rp_max))
+        stats[ST_F_MAX] = max(stats[ST_F_MAX], f_max)
+        stats[ST_F_MIN] = min(stats[ST_F_MIN], f_min)
+        stats[ST_U_MAX] = max(stats[ST_U_MAX], u_max)
+        stats[ST_U_MIN] = min(stats[ST_U_MIN], u_min)
+        stats[ST_D_MAX] = max(stats[ST_D_MAX], d_max)
+        stats[ST_D_MIN] = min(stats[ST_D_MIN], d_min)
+        stats[ST_BD_MAX] = max(stats[ST_BD_MAX], bd_max)
+        stats[ST_BD_MIN] = min(stats[ST_BD_MIN], bd_min)
+        if dynamic == 0:
+            stats[ST_PSI_MAX] = max(stats[ST_PSI_MAX], c[C_ALPHA0])
+            stats[ST_PSI_MIN] = min(stats[ST_PSI_MIN], c[C_ALPHA0])
+        else:
+            stats[ST_PSI_MAX] = max(stats[ST_PSI_MAX], math.asin(sp_max))
+            stats[ST_PSI_MIN] = min(stats[ST_PSI_MIN], math.asin(sp_min))
+    return status, done, el
 
 
 @kernel
