@@ -374,7 +374,8 @@ def geometry_t(q0, q1, q2, q3, k):
 def mesh_t(s, ce, se, omega, k, dynamic):
     """Mesh quantities of a state tuple s = (q0..q4, v0..v4, ...) at one instant.
 
-    Returns (Delta, Delta', B_d, f(Delta), region, sin psi, cos psi, dB/dX_p, dB/dY_p).
+    Returns (Delta, Delta', B_d, f(Delta), region, sin psi, cos psi, dB/dX_p, dB/dY_p, dpsi/dX_p,
+    dpsi/dY_p).
     """
     q0, q1, q2, q3, q4 = s[0], s[1], s[2], s[3], s[4]
     v0, v1, v2, v3, v4 = s[5], s[6], s[7], s[8], s[9]
@@ -387,6 +388,8 @@ def mesh_t(s, ce, se, omega, k, dynamic):
         bd = k[14]
         db0 = 0.0
         db1 = 0.0
+        dp0 = 0.0
+        dp1 = 0.0
         delta = dx * sp - dy * cp + q4 - e1 * ce
         ddelta = (v0 - v2) * sp - (v1 - v3) * cp + v4 + e1 * omega * se
     else:
@@ -395,7 +398,7 @@ def mesh_t(s, ce, se, omega, k, dynamic):
         psid = dp0 * (v0 - v2) + dp1 * (v1 - v3)
         ddelta = (v0 - v2) * sp - (v1 - v3) * cp + v4 + e1 * omega * se + psid * (dx * cp + dy * sp)
     f, region = backlash(delta, bd)
-    return delta, ddelta, bd, f, region, sp, cp, db0, db1
+    return delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1
 
 
 @kernel_inline
@@ -443,7 +446,7 @@ def newmark_try_t(s, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
         vp3 + gh * a3,
         vp4 + gh * a4,
     )
-    delta, ddelta, bd, f, region, sp, cp, db0, db1 = mesh_t(t, ce, se, w_b, k, dynamic)
+    delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh_t(t, ce, se, w_b, k, dynamic)
     F = xim2 * ddelta + kk * f
     for _it in range(max_iter):
         w0 = (sp - fr * cp) * iep
@@ -501,8 +504,26 @@ def newmark_try_t(s, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
             vp3 + gh * a3,
             vp4 + gh * a4,
         )
+        if dynamic != 0 and bh2 * dmax <= DQ_LINEAR:
+            # Final update of the dynamic model: the geometry at the new positions is the
+            # first-order Taylor expansion of eqs. (5)-(8) about the previous iterate (the
+            # remainder, curvature ~1/A0 times |dq|^2 <= 1e-8, is below 1e-12), which saves the
+            # square roots and divisions of a second geometry evaluation.
+            dpsi = bh2 * (dp0 * (e0 - e2) + dp1 * (e1 - e3))
+            bd1 = bd + bh2 * (db0 * (e0 - e2) + db1 * (e1 - e3))
+            sp1 = sp + cp * dpsi
+            cp1 = cp - sp * dpsi
+            dx = t[0] - t[2]
+            dy = t[1] - t[3]
+            delta1 = dx * sp1 - dy * cp1 + t[4] - k[10] * ce
+            psid = dp0 * (t[5] - t[7]) + dp1 * (t[6] - t[8])
+            ddelta1 = (t[5] - t[7]) * sp1 - (t[6] - t[8]) * cp1 + t[9] + k[10] * w_b * se + psid * (dx * cp1 + dy * sp1)
+            f1, region1 = backlash(delta1, bd1)
+            if region1 == region:
+                s1 = (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], a0, a1, a2, a3, a4)
+                return True, s1, xim2 * ddelta1 + kk * f1, region1, delta1, bd1, sp1, cp1
         old_region = region
-        delta, ddelta, bd, f, region, sp, cp, db0, db1 = mesh_t(t, ce, se, w_b, k, dynamic)
+        delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh_t(t, ce, se, w_b, k, dynamic)
         F = xim2 * ddelta + kk * f
         # The backlash force is piecewise linear: for the constant model the update is exact
         # once the region it assumed is the region it lands in. The dynamic model's geometry is
