@@ -24,7 +24,7 @@ from gear_env import GearParams, GearSimulator
 from gear_env.kernels import PC_DELTA
 from gear_env.reference import reference_poincare
 
-NS = (16, 32, 64, 128, 256, 512)
+NS = (16, 32, 64, 128, 160, 192, 256, 512)
 DEFAULT_OMEGAS = (0.2, 0.45, 0.8, 1.2, 1.5, 2.0, 2.8, 3.0)
 
 
@@ -57,7 +57,7 @@ def fixed_point(omega: float, model: str, params: GearParams) -> None:
     ref = reference_poincare(omega, model, params, transient=0, periods=30, initial_state=start)
     per = float(np.max(np.abs(ref.states[-1] - ref.states[-2])))
     cells = []
-    for n in (128, 256):
+    for n in (128, 160, 192, 256):
         st = GearSimulator(params, model, n, omega, start).advance(300)
         e = float(np.max(np.abs(st.poincare[-1, :10] - ref.states[-1])))
         ed = abs(float(st.poincare[-1, PC_DELTA]) - float(ref.delta[-1]))

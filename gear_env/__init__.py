@@ -9,6 +9,7 @@ from .simulator import (
     IntervalStats,
     Trajectory,
     default_initial_state,
+    default_steps_per_period,
     simulate,
 )
 
@@ -22,6 +23,7 @@ __all__ = [
     "SimulationDivergedError",
     "Trajectory",
     "default_initial_state",
+    "default_steps_per_period",
     "simulate",
     "__version__",
 ]

@@ -411,7 +411,7 @@ def friction_t(ce, se, k):
 
 
 @kernel_inline
-def newmark_try_t(s, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
+def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
     """Attempt one Newmark step on the state tuple s = (q (5), v (5), a (5)).
 
     ``hc`` = :func:`step_coeffs` of the step, ``(ce, se, kk)`` the excitation and ``w_b`` the
@@ -420,18 +420,18 @@ def newmark_try_t(s, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
     """
     iep, ieg, c0, c2, k0, k2, ext1, ext3, xim2, Fs = k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8], k[9]
     h, bh2, gh, hh, h1, idd0, idd2 = hc
-    a0, a1, a2, a3, a4 = s[10], s[11], s[12], s[13], s[14]
     # predictors
-    qp0 = s[0] + h * s[5] + hh * a0
-    qp1 = s[1] + h * s[6] + hh * a1
-    qp2 = s[2] + h * s[7] + hh * a2
-    qp3 = s[3] + h * s[8] + hh * a3
-    qp4 = s[4] + h * s[9] + hh * a4
-    vp0 = s[5] + h1 * a0
-    vp1 = s[6] + h1 * a1
-    vp2 = s[7] + h1 * a2
-    vp3 = s[8] + h1 * a3
-    vp4 = s[9] + h1 * a4
+    qp0 = s[0] + h * s[5] + hh * s[10]
+    qp1 = s[1] + h * s[6] + hh * s[11]
+    qp2 = s[2] + h * s[7] + hh * s[12]
+    qp3 = s[3] + h * s[8] + hh * s[13]
+    qp4 = s[4] + h * s[9] + hh * s[14]
+    vp0 = s[5] + h1 * s[10]
+    vp1 = s[6] + h1 * s[11]
+    vp2 = s[7] + h1 * s[12]
+    vp3 = s[8] + h1 * s[13]
+    vp4 = s[9] + h1 * s[14]
+    a0, a1, a2, a3, a4 = g  # Newton's starting guess of the end-of-step acceleration
     fr = friction_t(ce, se, k)  # [friction extension] tilts the force off the LOA; 0 by default
     cd = gh * xim2
     t = (
@@ -569,7 +569,10 @@ def split_step_t(s, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol):
             wk = math.sqrt(w_a * w_a + (w_b * w_b - w_a * w_a) * frac)
             hc = step_coeffs(2.0 * sub / (wprev + wk), k)
             cek, sek, kkk = excitation(phi_a + sub * (j + 1.0), c)
-            ok, ss, F, region, delta, bd, sp, cp = newmark_try_t(ss, cek, sek, kkk, wk, hc, k, dynamic, max_iter, tol)
+            ga = (ss[10], ss[11], ss[12], ss[13], ss[14])
+            ok, ss, F, region, delta, bd, sp, cp = newmark_try_t(
+                ss, ga, cek, sek, kkk, wk, hc, k, dynamic, max_iter, tol
+            )
             if not ok:
                 good = False
                 break
@@ -580,17 +583,33 @@ def split_step_t(s, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol):
 
 
 @kernel_inline
-def newmark_step_t(s, phi_a, dphi, ce, se, kk, w_a, w_b, hc, c, k, dynamic, max_iter, tol):
+def newmark_step_t(s, g, phi_a, dphi, ce, se, kk, w_a, w_b, hc, c, k, dynamic, max_iter, tol):
     """Advance the state tuple s = (q, v, a) by a phase increment dphi (omega: w_a -> w_b).
 
     ``(ce, se, kk)`` is the excitation at the end phase phi_a + dphi and ``hc`` the step
     coefficients (:func:`step_coeffs` of h = 2 dphi / (w_a + w_b)). Returns (status, new state
     tuple, F, region, Delta, B_d, sin psi, cos psi, split), split = 1 if Newton needed sub-steps.
     """
-    ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(s, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol)
+    ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol)
     if ok:
         return OK, s1, F, region, delta, bd, sp, cp, 0
     return split_step_t(s, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol)
+
+
+@kernel_inline
+def guess_t(s0, s1, last):
+    """Newton's starting guess for the next step's acceleration: linear extrapolation
+    2 a_{n+1} - a_n from the last two steps, or a_{n+1} itself if ``last`` (after a split step,
+    and for the constant model, whose piecewise-linear Newton does not depend on the guess)."""
+    if last:
+        return (s1[10], s1[11], s1[12], s1[13], s1[14])
+    return (
+        2.0 * s1[10] - s0[10],
+        2.0 * s1[11] - s0[11],
+        2.0 * s1[12] - s0[12],
+        2.0 * s1[13] - s0[13],
+        2.0 * s1[14] - s0[14],
+    )
 
 
 @kernel_inline
@@ -626,8 +645,9 @@ def newmark_step(x, a, phi_a, dphi, ce, se, kk, w_a, w_b, c, dynamic, work, max_
     """
     k = step_consts(c)
     hc = step_coeffs(2.0 * dphi / (w_a + w_b), k)
+    s0 = load_t(x, a)
     st, s, F, region, delta, bd, sp, cp, split = newmark_step_t(
-        load_t(x, a), phi_a, dphi, ce, se, kk, w_a, w_b, hc, c, k, dynamic, max_iter, tol
+        s0, (a[0], a[1], a[2], a[3], a[4]), phi_a, dphi, ce, se, kk, w_a, w_b, hc, c, k, dynamic, max_iter, tol
     )
     if st == OK:
         store_t(s, x, a)
@@ -704,6 +724,7 @@ def integrate_record(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, out, ma
     out[0, REC_FORCE] = F0
     out[0, REC_REGION] = region
     s = load_t(x, a)
+    g = (a[0], a[1], a[2], a[3], a[4])
     el = 0.0
     wa = w0
     hc = step_coeffs(dphi / w0, k)
@@ -713,12 +734,13 @@ def integrate_record(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, out, ma
             hc = step_coeffs(2.0 * dphi / (wa + wb), k)
         m = (j + 1) % n_steps
         st, s1, F, region, delta, bd, sp, cp, split = newmark_step_t(
-            s, phi0 + dphi * j, dphi, tab[m, 0], tab[m, 1], tab[m, 2], wa, wb, hc, c, k, dynamic, max_iter, tol
+            s, g, phi0 + dphi * j, dphi, tab[m, 0], tab[m, 1], tab[m, 2], wa, wb, hc, c, k, dynamic, max_iter, tol
         )
         el += hc[0]
         if st != OK:
             store_t(s, x, a)
             return st, j + 1, el
+        g = guess_t(s, s1, split or dynamic == 0)
         s = s1
         if _diverged_t(s):
             store_t(s, x, a)
@@ -773,6 +795,7 @@ def integrate_stats(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare
     ww = w1 * w1 - w0 * w0
     F_prev, reg_prev, delta, bd = start_step(x, a, phi0, w0, c, dynamic, work)
     s = load_t(x, a)
+    g = (a[0], a[1], a[2], a[3], a[4])
     tr_prev = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
     # local accumulators (added to / compared with ``stats`` at the end)
     t_sum = 0.0
@@ -807,7 +830,7 @@ def integrate_stats(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare
             hc = step_coeffs(2.0 * dphi / (wa + wb), k)
         m = (j + 1) % n_steps
         st, s1, F, region, delta, bd, sp, cp, split = newmark_step_t(
-            s, phi0 + dphi * j, dphi, tab[m, 0], tab[m, 1], tab[m, 2], wa, wb, hc, c, k, dynamic, max_iter, tol
+            s, g, phi0 + dphi * j, dphi, tab[m, 0], tab[m, 1], tab[m, 2], wa, wb, hc, c, k, dynamic, max_iter, tol
         )
         h = hc[0]
         el += h
@@ -815,6 +838,7 @@ def integrate_stats(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare
             status = st
             done = j // n_steps
             break
+        g = guess_t(s, s1, split or dynamic == 0)
         s = s1
         if _diverged_t(s):
             status = DIVERGED

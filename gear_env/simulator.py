@@ -23,8 +23,12 @@ from . import kernels as K
 from .errors import SimulationDivergedError
 from .params import C_E1, C_PHI_E, GearParams, model_code
 
-DEFAULT_STEPS_PER_PERIOD = 128
-"""Newmark steps per mesh period; chosen by the convergence study in docs/SIMULATOR.md."""
+DEFAULT_STEPS_PER_PERIOD = 192
+"""Fewest Newmark steps per mesh period of the automatic choice (:func:`default_steps_per_period`);
+chosen by the convergence study in docs/SIMULATOR.md."""
+
+MAX_NATURAL_STEP = 0.12
+"""Largest natural-time step 2 pi / (omega N) of the automatic choice (binds below omega ~ 0.27)."""
 
 NEWTON_MAX_ITER = 12
 NEWTON_TOL = 1e-10
@@ -70,6 +74,26 @@ def check_steps(steps_per_period: Any) -> int:
     if n > 100_000:
         raise ValueError(f"steps_per_period must be in [8, 100000], got {steps_per_period!r}")
     return n
+
+
+def default_steps_per_period(omega: float) -> int:
+    """Default Newmark steps per mesh period at meshing frequency omega (Omega/omega_n).
+
+    ``max(DEFAULT_STEPS_PER_PERIOD, ceil(2 pi / (MAX_NATURAL_STEP omega)))``: 192 steps per mesh
+    period, and more below omega ~ 0.27 so that the step in natural time stays <= 0.12 (at low
+    omega a mesh period is long compared with the structural modes). With it the Poincare points
+    agree with the independent solve_ivp reference to < 1e-3 b0 in every periodic regime of the
+    convergence study (docs/SIMULATOR.md).
+    """
+    w = check_omega(omega)
+    return max(DEFAULT_STEPS_PER_PERIOD, math.ceil(2.0 * math.pi / (MAX_NATURAL_STEP * w)))
+
+
+def resolve_steps(steps_per_period: Any, omega: float) -> int:
+    """``steps_per_period`` validated, or :func:`default_steps_per_period` (omega) if it is None."""
+    if steps_per_period is None:
+        return default_steps_per_period(omega)
+    return check_steps(steps_per_period)
 
 
 def default_initial_state(params: GearParams, model: str = "dynamic") -> np.ndarray:
@@ -190,7 +214,9 @@ class GearSimulator:
     Args:
         params: physical parameters (SI); default Table 1.
         model: ``"constant"`` or ``"dynamic"`` backlash.
-        steps_per_period: Newmark steps per mesh period (default 128).
+        steps_per_period: Newmark steps per mesh period, or None (default) for
+            :func:`default_steps_per_period` of the lower omega of each :meth:`advance` /
+            :meth:`record` call (192 for omega >= 0.27, more below).
         omega: meshing frequency Omega/omega_n at the start.
         initial_state: 10 values in b0 units, or None for MODEL.md A10.
     """
@@ -199,7 +225,7 @@ class GearSimulator:
         self,
         params: GearParams | None = None,
         model: str = "dynamic",
-        steps_per_period: int = DEFAULT_STEPS_PER_PERIOD,
+        steps_per_period: int | None = None,
         omega: float = 1.0,
         initial_state: Any = None,
     ):
@@ -208,9 +234,17 @@ class GearSimulator:
             raise ValueError(f"params must be a GearParams, got {type(self.params).__name__}")
         self.model = model
         self.model_code = model_code(model)
-        self.steps_per_period = check_steps(steps_per_period)
+        self.auto_steps = steps_per_period is None
+        self.steps_per_period = resolve_steps(steps_per_period, check_omega(omega))
+        """Steps per mesh period of the last interval (fixed unless ``auto_steps``)."""
         self._consts = np.ascontiguousarray(self.params.consts)
         self.reset(initial_state=initial_state, omega=omega)
+
+    def _steps(self, w0: float, w1: float) -> int:
+        """Steps per mesh period of an interval from w0 to w1 (updates ``steps_per_period``)."""
+        if self.auto_steps:
+            self.steps_per_period = default_steps_per_period(min(w0, w1))
+        return self.steps_per_period
 
     def reset(self, initial_state: Any = None, omega: float | None = None) -> None:
         """Return to the given state (default A10) at time 0 and mesh phase 0."""
@@ -246,7 +280,7 @@ class GearSimulator:
         pc = np.empty((n, K.N_PC))
         stats = np.empty(K.N_STATS)
         status, done, s = K.integrate_stats(
-            x, a, 0.0, w0, w1, n, self.steps_per_period, self._consts, self.model_code, pc, stats,
+            x, a, 0.0, w0, w1, n, self._steps(w0, w1), self._consts, self.model_code, pc, stats,
             NEWTON_MAX_ITER, NEWTON_TOL, True,
         )  # fmt: skip
         if status != K.OK:
@@ -264,12 +298,13 @@ class GearSimulator:
         w1 = w0 if omega_end is None else check_omega(omega_end, "omega_end")
         x = self.x.copy()
         a = self.a.copy()
-        out = np.empty((n * self.steps_per_period + 1, K.N_REC))
+        nsp = self._steps(w0, w1)
+        out = np.empty((n * nsp + 1, K.N_REC))
         status, rows, s = K.integrate_record(
-            x, a, 0.0, w0, w1, n, self.steps_per_period, self._consts, self.model_code, out, NEWTON_MAX_ITER, NEWTON_TOL
+            x, a, 0.0, w0, w1, n, nsp, self._consts, self.model_code, out, NEWTON_MAX_ITER, NEWTON_TOL
         )
         if status != K.OK:
-            self._raise(status, (rows - 1) // self.steps_per_period, w0)
+            self._raise(status, (rows - 1) // nsp, w0)
         out[:, K.REC_S] += self.time
         self.x, self.a = x, a
         self.omega = w1
@@ -277,7 +312,7 @@ class GearSimulator:
         self.periods_done += n
         return Trajectory(
             data=out,
-            steps_per_period=self.steps_per_period,
+            steps_per_period=nsp,
             model=self.model,
             params=self.params,
         )
@@ -412,7 +447,7 @@ def simulate(
     model: str = "dynamic",
     periods: int = 200,
     transient: int = 300,
-    steps_per_period: int = DEFAULT_STEPS_PER_PERIOD,
+    steps_per_period: int | None = None,
     params: GearParams | None = None,
     initial_state: Any = None,
 ) -> Trajectory:
@@ -423,7 +458,8 @@ def simulate(
         model: ``"constant"`` or ``"dynamic"`` backlash (MODEL.md A8/A9).
         periods: mesh periods recorded after the transient (>= 1).
         transient: mesh periods discarded first (>= 0).
-        steps_per_period: Newmark steps per mesh period.
+        steps_per_period: Newmark steps per mesh period; None (default) for
+            :func:`default_steps_per_period` (omega) (192 for omega >= 0.27, more below).
         params: physical parameters (SI); default Table 1 with kappa = 0.2.
         initial_state: 10 values in b0 units, or None for the static equilibrium (A10).
 

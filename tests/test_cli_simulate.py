@@ -34,7 +34,7 @@ def test_simulate_kappa_and_default_steps(tmp_path):
                "--kappa", "0.1", "--json", str(out)])  # fmt: skip
     assert rc == 0
     d = json.loads(out.read_text())
-    assert d["steps_per_period"] == 128 and d["params"]["kappa"] == 0.1
+    assert d["steps_per_period"] == 192 and d["params"]["kappa"] == 0.1  # default_steps_per_period(0.8)
 
 
 def test_simulate_bad_arguments_exit_2(tmp_path, capsys):

@@ -135,3 +135,27 @@ def test_divergence_raises_with_period():
 def test_no_nan_ever_returned():
     tr = simulate(2.0, "dynamic", periods=20, transient=20)
     assert np.all(np.isfinite(tr.data))
+
+
+def test_default_steps_per_period_rule_and_ramps():
+    """192 steps per mesh period, more below omega ~ 0.27 (natural-time step <= 0.12)."""
+    from gear_env import default_steps_per_period
+    from gear_env.simulator import MAX_NATURAL_STEP
+
+    assert default_steps_per_period(1.2) == 192 and default_steps_per_period(0.3) == 192
+    assert default_steps_per_period(0.2) == 262
+    for w in (1e-3, 0.05, 0.1, 0.2, 0.27, 0.5, 3.0, 100.0):
+        n = default_steps_per_period(w)
+        assert 2 * np.pi / (w * n) <= MAX_NATURAL_STEP + 1e-15 and 192 <= n <= 100_000
+    with pytest.raises(ValueError, match="omega"):
+        default_steps_per_period(0.0)
+    # automatic: chosen per interval from its lower omega; an explicit value is kept
+    sim = GearSimulator(None, "constant", None, 1.0)
+    assert sim.steps_per_period == 192
+    sim.advance(2, omega_end=0.2)
+    assert sim.steps_per_period == 262
+    tr = sim.record(1)
+    assert tr.steps_per_period == 262 and len(tr.data) == 263
+    fixed = GearSimulator(None, "constant", 64, 1.0)
+    fixed.advance(2, omega_end=0.2)
+    assert fixed.steps_per_period == 64

@@ -81,8 +81,10 @@ def test_sweep_contents_and_views():
 
 
 def test_steps_for_rule():
-    assert steps_for(0.05) == 128 and steps_for(0.05, adaptive=True) == 1280
-    assert steps_for(1.0, adaptive=True) == 128
+    # default: the simulator's rule, max(192, ceil(2 pi / (0.12 omega)))
+    assert steps_for(1.0) == 192 and steps_for(0.2) == 262 and steps_for(0.05) == 1048
+    assert steps_for(0.05, 128) == 128 and steps_for(0.05, 128, adaptive=True) == 1280
+    assert steps_for(1.0, 128, adaptive=True) == 128
 
 
 @pytest.fixture(scope="module")

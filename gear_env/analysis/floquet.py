@@ -36,13 +36,12 @@ from .. import kernels as K
 from ..errors import SimulationDivergedError
 from ..params import GearParams, model_code
 from ..simulator import (
-    DEFAULT_STEPS_PER_PERIOD,
     NEWTON_MAX_ITER,
     NEWTON_TOL,
     GearSimulator,
     check_count,
     check_omega,
-    check_steps,
+    resolve_steps,
 )
 
 BIFURCATIONS = ("stable", "period-doubling", "neimark-sacker", "fold")
@@ -97,7 +96,7 @@ class PeriodMap:
         model: backlash model.
         params: physical parameters (default Table 1).
         period: N (mesh periods per map application).
-        steps_per_period: Newmark steps per mesh period.
+        steps_per_period: Newmark steps per mesh period; None: ``default_steps_per_period(omega)``.
     """
 
     def __init__(
@@ -106,7 +105,7 @@ class PeriodMap:
         model: str = "dynamic",
         params: GearParams | None = None,
         period: int = 1,
-        steps_per_period: int = DEFAULT_STEPS_PER_PERIOD,
+        steps_per_period: int | None = None,
     ):
         self.omega = check_omega(omega)
         self.model = model
@@ -115,7 +114,7 @@ class PeriodMap:
         if not isinstance(self.params, GearParams):
             raise ValueError(f"params must be a GearParams, got {type(self.params).__name__}")
         self.period = check_count(period, "period")
-        self.steps = check_steps(steps_per_period)
+        self.steps = resolve_steps(steps_per_period, self.omega)
         self._c = np.ascontiguousarray(self.params.consts)
         self._a = np.zeros(K.NDOF)
         self._pc = np.empty((self.period, K.N_PC))
@@ -173,7 +172,7 @@ def find_periodic_orbit(
     params: GearParams | None = None,
     period: int = 1,
     x0: Any = None,
-    steps_per_period: int = DEFAULT_STEPS_PER_PERIOD,
+    steps_per_period: int | None = None,
     *,
     transient: int = 200,
     tol: float = 1e-11,
@@ -189,7 +188,8 @@ def find_periodic_orbit(
         period: N, the period in mesh periods (>= 1).
         x0: initial guess (10 values on the section); None: the state after ``transient`` mesh
             periods from the static equilibrium (MODEL.md A10).
-        steps_per_period: Newmark steps per mesh period (the discretisation of the map).
+        steps_per_period: Newmark steps per mesh period (the discretisation of the map); None:
+            ``default_steps_per_period(omega)``.
         transient: mesh periods simulated to build the default initial guess.
         tol: convergence tolerance on max|P^N(x) - x| (b0 units).
         max_iter: maximum Newton iterations.

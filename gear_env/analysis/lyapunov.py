@@ -23,7 +23,7 @@ import numpy as np
 from .. import kernels as K
 from ..errors import SimulationDivergedError
 from ..params import GearParams, model_code
-from ..simulator import NEWTON_MAX_ITER, NEWTON_TOL, _check_state, check_count, check_omega, check_steps
+from ..simulator import NEWTON_MAX_ITER, NEWTON_TOL, _check_state, check_count, check_omega, resolve_steps
 
 DEFAULT_D0 = 1e-8
 """Default initial separation (b0 units): large against the Newton tolerance, small against b0."""
@@ -46,7 +46,7 @@ def largest_lyapunov(
     params: GearParams | None = None,
     state: Any = None,
     periods: int = 200,
-    steps_per_period: int = 128,
+    steps_per_period: int | None = None,
     d0: float = DEFAULT_D0,
     transient: int = 0,
 ) -> float:
@@ -59,7 +59,7 @@ def largest_lyapunov(
         state: start state (10 values, b0 units), or None for the static equilibrium; it should
             already lie on the attractor (or pass ``transient``).
         periods: mesh periods over which separations are averaged (renormalised every period).
-        steps_per_period: Newmark steps per mesh period.
+        steps_per_period: Newmark steps per mesh period; None: ``default_steps_per_period(omega)``.
         d0: separation (state-space Euclidean norm, b0 units) restored every period.
         transient: mesh periods simulated first and discarded.
 
@@ -74,7 +74,7 @@ def largest_lyapunov(
 
     w = check_omega(omega)
     n = check_count(periods, "periods", 2)
-    nsteps = check_steps(steps_per_period)
+    nsteps = resolve_steps(steps_per_period, w)
     tr = check_count(transient, "transient", 0)
     if not (isinstance(d0, (int, float)) and 0.0 < float(d0) < 1e-2 and math.isfinite(d0)):
         raise ValueError(f"d0 must be a finite separation in (0, 1e-2) b0, got {d0!r}")

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..params import GearParams
-from ..simulator import DEFAULT_STEPS_PER_PERIOD, GearSimulator, Trajectory, check_count, check_omega
+from ..simulator import GearSimulator, Trajectory, check_count, check_omega
 
 
 @dataclass(frozen=True)
@@ -142,7 +142,7 @@ def waterfall(
     periods: int = 64,
     transient: int = 300,
     params: GearParams | None = None,
-    steps_per_period: int = DEFAULT_STEPS_PER_PERIOD,
+    steps_per_period: int | None = None,
     max_multiple: float = 4.0,
     progress: Callable[[int, int], None] | None = None,
 ) -> Waterfall:
@@ -155,7 +155,7 @@ def waterfall(
         periods: mesh periods per spectrum (frequency resolution 1/periods of the mesh frequency).
         transient: mesh periods discarded at each omega before recording.
         params: physical parameters (default Table 1).
-        steps_per_period: Newmark steps per mesh period.
+        steps_per_period: Newmark steps per mesh period; None: ``default_steps_per_period(omega)``.
         max_multiple: highest frequency kept, in multiples of the mesh frequency.
         progress: optional callback ``progress(done, total)``.
 

@@ -35,7 +35,15 @@ import numpy as np
 from ..errors import SimulationDivergedError
 from ..io import atomic_write_text
 from ..params import GearParams, model_code
-from ..simulator import DEFAULT_STEPS_PER_PERIOD, GearSimulator, check_count, check_omega, check_steps
+from ..simulator import (
+    DEFAULT_STEPS_PER_PERIOD,
+    MAX_NATURAL_STEP,
+    GearSimulator,
+    check_count,
+    check_omega,
+    check_steps,
+    resolve_steps,
+)
 from .floquet import find_periodic_orbit
 
 FORMAT_VERSION = 1
@@ -58,7 +66,8 @@ class StabilityMap:
         labels: (n,) str, one of ``LABELS``.
         states: (n, 10) period-1 orbit on the Poincare section.
         residual: (n,) Newton residual.
-        steps_per_period: Newmark steps per mesh period.
+        steps_per_period: Newmark steps per mesh period, or None for ``default_steps_per_period``
+            (omega) at every grid point.
         params: parameters (SI dict).
     """
 
@@ -70,7 +79,7 @@ class StabilityMap:
     labels: np.ndarray
     states: np.ndarray
     residual: np.ndarray
-    steps_per_period: int
+    steps_per_period: int | None
     params: dict[str, Any] = field(default_factory=dict)
 
     # ------------------------------------------------------------------ queries
@@ -162,7 +171,7 @@ class StabilityMap:
                 labels=np.asarray(d["labels"], dtype=object),
                 states=np.asarray(d["states"], dtype=float),
                 residual=np.asarray(d["residual"], dtype=float),
-                steps_per_period=int(d["steps_per_period"]),
+                steps_per_period=None if d["steps_per_period"] is None else int(d["steps_per_period"]),
                 params=dict(d["params"]),
             )
         except (KeyError, TypeError) as exc:
@@ -197,15 +206,19 @@ def cache_dir() -> Path:
     return Path(env) if env else Path.home() / ".cache" / "gear-env"
 
 
-def cache_key(params: GearParams, model: str, omega: np.ndarray, steps_per_period: int) -> str:
+_AUTO_STEPS = f"auto(max({DEFAULT_STEPS_PER_PERIOD}, 2 pi / ({MAX_NATURAL_STEP} omega)))"
+
+
+def cache_key(params: GearParams, model: str, omega: np.ndarray, steps_per_period: int | None) -> str:
     """SHA-256 (hex, 24 characters) of everything the map depends on."""
+    steps: int | str = steps_per_period if steps_per_period is not None else _AUTO_STEPS
     blob = json.dumps(
         {
             "v": FORMAT_VERSION,
             "params": params.to_dict(),
             "model": model,
             "omega": [float(f"{w:.12g}") for w in omega],
-            "steps": steps_per_period,
+            "steps": steps,
         },
         sort_keys=True,
     )
@@ -225,13 +238,13 @@ def compute_stability_map(
     omega: np.ndarray,
     model: str = "dynamic",
     params: GearParams | None = None,
-    steps_per_period: int = DEFAULT_STEPS_PER_PERIOD,
+    steps_per_period: int | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> StabilityMap:
     """Continue the period-1 orbit along ``omega`` (increasing) without any cache; see :func:`stability_map`."""
     p = params if params is not None else GearParams()
     model_code(model)
-    steps = check_steps(steps_per_period)
+    fixed = None if steps_per_period is None else check_steps(steps_per_period)
     w = np.asarray(omega, dtype=float)
     n = len(w)
     mus = np.zeros((n, 10), dtype=complex)
@@ -242,6 +255,7 @@ def compute_stability_map(
     prev: list[np.ndarray] = []  # last converged orbit states (for the predictor)
     prev_w: list[float] = []
     for i, wi in enumerate(w):
+        steps = resolve_steps(fixed, float(wi))
         guesses: list[np.ndarray | None] = []
         if len(prev) >= 2 and abs(wi - prev_w[-1]) < 3 * abs(w[1] - w[0]) + 1e-12:
             t = (wi - prev_w[-1]) / (prev_w[-1] - prev_w[-2])
@@ -290,14 +304,14 @@ def compute_stability_map(
         labels=labels,
         states=states,
         residual=res,
-        steps_per_period=steps,
+        steps_per_period=fixed,
         params=p.to_dict(),
     )
 
 
 def default_stability_map(model: str = "dynamic") -> StabilityMap:
     """The precomputed map of the default configuration shipped with the package (no computation):
-    Table 1 parameters, omega in [0.05, 3.0] with DEFAULT_POINTS points, 128 steps per period."""
+    Table 1 parameters, omega in [0.05, 3.0] with DEFAULT_POINTS points, default steps per period."""
     model_code(model)
     ref = resources.files("gear_env") / "data" / f"stability_{model}.json"
     return StabilityMap.from_dict(json.loads(ref.read_text(encoding="utf-8")))
@@ -309,7 +323,7 @@ def stability_map(
     omega_min: float = 0.05,
     omega_max: float = 3.0,
     points: int = DEFAULT_POINTS,
-    steps_per_period: int = DEFAULT_STEPS_PER_PERIOD,
+    steps_per_period: int | None = None,
     *,
     cache: bool = True,
     progress: Callable[[int, int], None] | None = None,
@@ -321,7 +335,8 @@ def stability_map(
         params: physical parameters (default Table 1).
         omega_min, omega_max: grid limits (Omega/omega_n).
         points: grid points (>= 2), uniform.
-        steps_per_period: Newmark steps per mesh period of the one-period map.
+        steps_per_period: Newmark steps per mesh period of the one-period map; None (default):
+            ``default_steps_per_period(omega)`` at each grid point.
         cache: read/write the disk cache (and use the packaged default maps when they match).
         progress: optional callback ``progress(done, total)``.
 
@@ -332,7 +347,7 @@ def stability_map(
     if not isinstance(p, GearParams):
         raise ValueError(f"params must be a GearParams, got {type(p).__name__}")
     model_code(model)
-    steps = check_steps(steps_per_period)
+    steps = None if steps_per_period is None else check_steps(steps_per_period)
     grid = _grid(omega_min, omega_max, points)
     key = cache_key(p, model, grid, steps)
     if cache:

@@ -28,7 +28,7 @@ import numpy as np
 
 from .. import kernels as K
 from ..params import GearParams, model_code
-from ..simulator import DEFAULT_STEPS_PER_PERIOD, GearSimulator, check_count, check_omega, check_steps
+from ..simulator import GearSimulator, check_count, check_omega, check_steps, default_steps_per_period
 from .checkpoint import Checkpoint
 from .classify import (
     DEFAULT_LYAP_TOL,
@@ -44,15 +44,16 @@ from .results import PointResult, SweepResult, assemble
 DIRECTIONS = ("forward", "reverse")
 
 
-def steps_for(omega: float, base: int = DEFAULT_STEPS_PER_PERIOD, adaptive: bool = False) -> int:
+def steps_for(omega: float, base: int | None = None, adaptive: bool = False) -> int:
     """Newmark steps per mesh period used at ``omega``.
 
-    With ``adaptive=False`` (the default) always ``base``. With ``adaptive=True``
-    ``max(base, ceil(base * 0.5 / omega))``: the natural-time step ``h = 2 pi / (omega N)`` is then
-    capped at its value at omega = 0.5. The measurement in docs/ANALYSIS.md shows the fixed
-    128 steps are already accurate to < 1e-5 at omega <= 0.1 (the response is quasi-static there)
-    and to ~1e-3 in the impacting band above 0.2, so adaptive stepping is an option, not the default.
+    ``base=None`` (the default): the simulator's :func:`~gear_env.simulator.default_steps_per_period`
+    (192, more below omega ~ 0.27). A fixed ``base`` is used as is, or with ``adaptive=True`` as
+    ``max(base, ceil(base * 0.5 / omega))`` (the natural-time step ``h = 2 pi / (omega N)`` capped at
+    its value at omega = 0.5).
     """
+    if base is None:
+        return default_steps_per_period(omega)
     if not adaptive:
         return int(base)
     return int(max(base, math.ceil(base * 0.5 / omega)))
@@ -67,7 +68,7 @@ class SweepConfig:
     transient: int
     periods: int
     params: GearParams
-    steps_per_period: int
+    steps_per_period: int | None
     adaptive_steps: bool
     lyapunov: bool
     tol: float = DEFAULT_TOL
@@ -276,7 +277,7 @@ def sweep(
     transient: int = 300,
     periods: int = 200,
     params: GearParams | None = None,
-    steps_per_period: int = DEFAULT_STEPS_PER_PERIOD,
+    steps_per_period: int | None = None,
     lyapunov: bool = True,
     workers: int = 1,
     executor: Executor | str | None = None,
@@ -303,7 +304,9 @@ def sweep(
         transient: mesh periods discarded at each omega (positive integer).
         periods: mesh periods recorded at each omega (>= 4).
         params: physical parameters (default Table 1).
-        steps_per_period: Newmark steps per mesh period (``adaptive_steps`` raises it at low omega).
+        steps_per_period: Newmark steps per mesh period; None (default): the simulator's
+            ``default_steps_per_period(omega)`` at each point. A fixed value is raised at low omega
+            by ``adaptive_steps``.
         lyapunov: compute the largest Lyapunov exponent (a perturbed copy runs alongside the
             recorded window: about +40 % of the cost with the default windows).
         workers: parallel workers; 1 with no ``executor`` runs serially in this process.
@@ -315,7 +318,7 @@ def sweep(
             this sweep, finished points are reused. Deleted after success.
         scheduler: Dask scheduler address (``tcp://host:port``) for ``executor="dask"``.
         chunks: number of chunks of a parallel sweep (default 8 per worker).
-        adaptive_steps: use :func:`steps_for` with ``adaptive=True``.
+        adaptive_steps: with a fixed ``steps_per_period``, use :func:`steps_for` with ``adaptive=True``.
         coarse_periods: mesh periods per grid step of the coarse ramp that starts the chunks.
         tol, max_period, lyap_tol: classification settings (:func:`classify_motion`).
         max_extend: extra windows of ``periods`` used to confirm a label.
@@ -372,7 +375,7 @@ def sweep_many(
                 sp.get("transient", 300),
                 sp.get("periods", 200),
                 sp.get("params"),
-                sp.get("steps_per_period", DEFAULT_STEPS_PER_PERIOD),
+                sp.get("steps_per_period"),
                 sp.get("lyapunov", True),
                 sp.get("checkpoint"),
                 sp.get("adaptive_steps", False),
@@ -422,7 +425,7 @@ def _prepare(
         raise ValueError(f"direction must be 'forward' or 'reverse', got {direction!r}")
     transient = check_count(transient, "transient", 1)
     periods = check_count(periods, "periods", 4)
-    steps_per_period = check_steps(steps_per_period)
+    steps_per_period = None if steps_per_period is None else check_steps(steps_per_period)
     max_extend = check_count(max_extend, "max_extend", 0)
     params = GearParams() if params is None else params
     if not isinstance(params, GearParams):

@@ -41,7 +41,7 @@ class FigureSettings:
     points: int = 296
     transient: int = 300
     periods: int = 100
-    steps_per_period: int = 128
+    steps_per_period: int | None = None  # None: default_steps_per_period(omega)
     waterfall_points: int = 59
     waterfall_periods: int = 64
     history_periods: int = 30

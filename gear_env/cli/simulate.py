@@ -16,7 +16,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--periods", type=int, default=200, help="mesh periods recorded (default 200)")
     p.add_argument("--transient", type=int, default=300, help="mesh periods discarded first (default 300)")
     p.add_argument("--kappa", type=float, default=None, help="mesh-stiffness harmonic amplitude (default 0.2)")
-    p.add_argument("--steps-per-period", type=int, default=None, help="Newmark steps per mesh period (default 128)")
+    p.add_argument(
+        "--steps-per-period",
+        type=int,
+        default=None,
+        help="Newmark steps per mesh period (default 192, more below omega 0.27)",
+    )
     p.add_argument("--json", metavar="PATH", help="write the summary (amplitudes, Poincare points) as JSON")
     p.add_argument("--plot", metavar="PATH", help="write a PNG: time history, phase portrait, Poincare map")
     p.set_defaults(func=run)
@@ -24,13 +29,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..params import GearParams
-    from ..simulator import DEFAULT_STEPS_PER_PERIOD, simulate
+    from ..simulator import simulate
 
     params = GearParams() if args.kappa is None else GearParams(kappa=args.kappa)
-    n = DEFAULT_STEPS_PER_PERIOD if args.steps_per_period is None else args.steps_per_period
     traj = simulate(
-        args.omega, model=args.model, periods=args.periods, transient=args.transient, steps_per_period=n, params=params
+        args.omega,
+        model=args.model,
+        periods=args.periods,
+        transient=args.transient,
+        steps_per_period=args.steps_per_period,
+        params=params,
     )
+    n = traj.steps_per_period
     d = traj.to_dict()
     print(
         f"omega={args.omega:g} model={args.model} periods={args.periods} transient={args.transient} "

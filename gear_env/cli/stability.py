@@ -20,7 +20,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--omega-max", type=float, default=3.0, help="highest omega (default 3.0)")
     p.add_argument("--points", type=int, default=None, help="grid points (default 296: a step of 0.01)")
     p.add_argument("--kappa", type=float, default=None, help="mesh-stiffness harmonic amplitude (default 0.2)")
-    p.add_argument("--steps-per-period", type=int, default=None, help="Newmark steps per mesh period (default 128)")
+    p.add_argument(
+        "--steps-per-period",
+        type=int,
+        default=None,
+        help="Newmark steps per mesh period (default 192, more below omega 0.27)",
+    )
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the cache (always compute)")
     p.add_argument("--json", metavar="PATH", help="write the map (grid, multipliers, labels, intervals) as JSON")
     p.add_argument("--plot", metavar="PATH", help="write a PNG of max|multiplier| and the multipliers over omega")
@@ -30,7 +35,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..analysis.stability import DEFAULT_POINTS, stability_map
     from ..params import GearParams
-    from ..simulator import DEFAULT_STEPS_PER_PERIOD
 
     params = GearParams() if args.kappa is None else GearParams(kappa=args.kappa)
     m = stability_map(
@@ -39,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
         args.omega_min,
         args.omega_max,
         DEFAULT_POINTS if args.points is None else args.points,
-        DEFAULT_STEPS_PER_PERIOD if args.steps_per_period is None else args.steps_per_period,
+        args.steps_per_period,
         cache=not args.no_cache,
     )
     print(f"model={m.model} omega in [{m.omega[0]:g}, {m.omega[-1]:g}], {len(m.omega)} points")
