@@ -156,8 +156,9 @@ class GearSpeedCore:
     # ------------------------------------------------------------------ info access
     @property
     def info(self) -> dict[str, np.ndarray]:
-        """Info of every row as typed arrays (n,), keys as :data:`INFO_KEYS`."""
-        return {k: self.I[:, j].astype(t) for j, (k, t) in enumerate(INFO_KEYS.items())}
+        """Info of every row as typed arrays (n,), keys as :data:`INFO_KEYS` (fresh arrays)."""
+        cols = self.I.T.copy()  # one copy; the float columns are rows of it
+        return {k: cols[j] if t is float else cols[j].astype(t) for j, (k, t) in enumerate(_INFO_ITEMS)}
 
     def info_row(self, r: int) -> dict[str, Any]:
         """Plain-Python info dict of row ``r`` (floats, ints, bools)."""

@@ -108,9 +108,10 @@ class GearSpeedVectorEnv(VectorEnv):
         info: dict[str, Any] = {}
         n = self.num_envs
         mask = np.ones(n, bool) if rows is None else np.isin(np.arange(n), rows)
+        mask.flags.writeable = False  # one read-only mask shared by every key
         for k, v in self._core.info.items():
             info[k] = v
-            info["_" + k] = mask.copy()
+            info["_" + k] = mask
         return info
 
     def _reset_rows(self, rows: np.ndarray, options: dict | None = None) -> None:
