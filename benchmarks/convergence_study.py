@@ -61,11 +61,12 @@ def fixed_point(omega: float, model: str, params: GearParams) -> None:
     ref = reference_poincare(omega, model, params, transient=0, periods=30, initial_state=start)
     per = float(np.max(np.abs(ref.states[-1] - ref.states[-2])))
     cells = []
-    for n in (128, 160, 192, 256):
+    for n in (128, 160, 192, 256, None):
         st = GearSimulator(params, model, n, omega, start).advance(300)
         e = float(np.max(np.abs(st.poincare[-1, :10] - ref.states[-1])))
         ed = abs(float(st.poincare[-1, PC_DELTA]) - float(ref.delta[-1]))
-        cells.append(f"N={n}: states {e:.2e} Delta {ed:.2e}")
+        label = f"N={n}" if n is not None else f"default N={default_steps_per_period(omega)}"
+        cells.append(f"{label}: states {e:.2e} Delta {ed:.2e}")
     print(f"{omega:<5.2f}  {model:<8s} reference periodicity {per:.1e} | " + " | ".join(cells))
 
 

@@ -507,7 +507,7 @@ def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
         if dynamic != 0 and bh2 * dmax <= DQ_LINEAR:
             # Final update of the dynamic model: the geometry at the new positions is the
             # first-order Taylor expansion of eqs. (5)-(8) about the previous iterate (the
-            # remainder, curvature ~1/A0 times |dq|^2 <= 1e-8, is below 1e-12), which saves the
+            # remainder, curvature of B_d(q) ~1e-3 per b0 times |dq|^2 <= 1e-8, is below 1e-11), which saves the
             # square roots and divisions of a second geometry evaluation.
             dpsi = bh2 * (dp0 * (e0 - e2) + dp1 * (e1 - e3))
             bd1 = bd + bh2 * (db0 * (e0 - e2) + db1 * (e1 - e3))
@@ -529,7 +529,7 @@ def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
         # once the region it assumed is the region it lands in. The dynamic model's geometry is
         # mildly nonlinear: its update is accepted when small (tol) or when the position change
         # of the last Newton update, bh2 * dmax, is below DQ_LINEAR, where the neglected
-        # quadratic term (curvature of B_d(q) ~ 1/A0 ~ 1.5e-4 per b0) is below 1e-12.
+        # quadratic term (curvature of B_d(q) ~ 1e-3 per b0 times DQ_LINEAR^2) is below 1e-11.
         if region == old_region and (
             dynamic == 0
             or bh2 * dmax <= DQ_LINEAR

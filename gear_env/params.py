@@ -266,6 +266,13 @@ class GearParams:
         c.setflags(write=False)
         return c
 
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        """Pickle by the SI fields and rebuild (and revalidate) on load, so that the constants
+        come back read-only like the original's: numba compiles one specialisation per array
+        flag, and a worker process that received writable constants would otherwise compile
+        the kernels again instead of loading them from the disk cache."""
+        return (self.__class__, tuple(getattr(self, f.name) for f in fields(self) if f.init))
+
     @property
     def consts(self) -> np.ndarray:
         """Read-only float64 array of dimensionless constants (layout: the ``C_*`` indices)."""

@@ -86,3 +86,15 @@ def test_frozen():
     with pytest.raises(dataclasses.FrozenInstanceError):
         p.kappa = 0.3  # type: ignore[misc]
     assert np.isfinite(p.consts).all()
+
+
+def test_pickle_keeps_the_constants_read_only():
+    """A pickled GearParams (e.g. sent to a sweep worker) rebuilds its read-only constants: numba
+    keys its compiled specialisations on the writeable flag, so writable constants in a worker
+    would trigger a fresh compilation instead of a disk-cache load."""
+    import pickle
+
+    p = GearParams(kappa=0.15, b0=1.5e-5, gravity=9.81)
+    q = pickle.loads(pickle.dumps(p))
+    assert q == p and not q.consts.flags.writeable
+    assert np.array_equal(q.consts, p.consts)
