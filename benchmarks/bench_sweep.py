@@ -118,7 +118,7 @@ def lyapunov_study() -> int:
     print("model     omega   lam(200)  lam(1000) lam(4000)  [per unit natural time]")
     for model, w in [("constant", 0.526), ("constant", 0.469), ("constant", 1.71), ("constant", 2.274),
                      ("dynamic", 2.162), ("dynamic", 1.879)]:  # fmt: skip
-        sim = GearSimulator(None, model, 128, w)
+        sim = GearSimulator(None, model, None, w)  # default steps, as largest_lyapunov
         sim.advance(500)
         x = sim.state
         vals = [largest_lyapunov(w, model, state=x, periods=n) for n in (200, 1000, 4000)]
