@@ -132,15 +132,16 @@ def backlash(delta, bd):
     return 0.0, 0
 
 
-@kernel_inline
-def geometry_s(q0, q1, q2, q3, c, dynamic, out):
-    """Mesh geometry at positions (X_p, Y_p, X_g, Y_g) (eqs. 5-8), without trigonometric calls.
+GEO_SIZE = 14
+
+
+@kernel
+def geometry(q, c, dynamic, out):
+    """Mesh geometry at positions q = (X_p, Y_p, X_g, Y_g, ...) (eqs. 5-8), array form.
 
     Writes ``out[0:14] = [psi, B_d, dB/dq (5), dpsi/dq (5), sin psi, cos psi]``. For the constant
-    model psi = alpha0 and B_d = B_c (A8), and the derivative entries are left untouched (the
-    caller keeps them zero); for the dynamic model eqs. (5)-(8) at every call (A9). With
-    ca = R/A_d, sa = sqrt(1 - ca^2) (alpha_d), cz = d1/A_d and z = -d2/A_d (the arcsin term):
-    sin psi = sa cz + ca z and cos psi = ca cz - sa z.
+    model psi = alpha0 and B_d = B_c (A8) and the derivative entries are left untouched (the
+    caller keeps them zero); for the dynamic model eqs. (5)-(8) (A9) by :func:`geometry_t`.
     """
     if dynamic == 0:
         out[0] = c[C_ALPHA0]
@@ -148,132 +149,54 @@ def geometry_s(q0, q1, q2, q3, c, dynamic, out):
         out[12] = c[C_SIN_A0]
         out[13] = c[C_COS_A0]
         return
-    A0 = c[C_A0]
-    R = c[C_R]
-    d1 = A0 - q0 + q2
-    d2 = q1 - q3
-    ad = math.sqrt(d1 * d1 + d2 * d2)
-    iad = 1.0 / ad  # one division, reused below
-    ca = R * iad
-    s2 = 1.0 - ca * ca
-    if s2 < 1e-30:
-        s2 = 1e-30
-    sa = math.sqrt(s2)
-    ica = ad / R
-    ta = sa * ica
-    cz = d1 * iad
-    z = -d2 * iad
-    sp = sa * cz + ca * z
-    cp = ca * cz - sa * z
+    db0, db1, dp0, dp1, bd, sp, cp = geometry_t(q[0], q[1], q[2], q[3], step_consts(c))
+    out[0] = math.atan2(sp, cp)
+    out[1] = bd
+    out[2] = db0
+    out[3] = db1
+    out[4] = -db0
+    out[5] = -db1
+    out[6] = 0.0
+    out[7] = dp0
+    out[8] = dp1
+    out[9] = -dp0
+    out[10] = -dp1
+    out[11] = 0.0
     out[12] = sp
     out[13] = cp
-    # out[0] (psi itself) is filled by psi_of() only where it is reported: atan2 is not needed
-    # for the forces, which use sin psi and cos psi
-    out[1] = c[C_BC] + (ad - A0) * ta
-    # dalpha/dA_d = R / (A_d sqrt(A_d^2 - R^2)) = ca / (A_d sa)
-    dalpha_dad = ca * iad / sa
-    db_dad = ta + (ad - A0) * (1.0 + ta * ta) * dalpha_dad
-    dad0 = -cz  # dA_d/dX_p (= -dA_d/dX_g)
-    dad1 = -z  # dA_d/dY_p (= -dA_d/dY_g)
-    out[2] = db_dad * dad0
-    out[3] = db_dad * dad1
-    out[4] = -out[2]
-    out[5] = -out[3]
-    out[6] = 0.0
-    # dpsi/dq = dalpha/dA dA/dq + (dz/dq) / cz,  dz = -dd2/A_d + d2 dA_d / A_d^2
-    icz = 1.0 / cz
-    d2a = d2 * iad * iad
-    out[7] = dalpha_dad * dad0 + d2a * dad0 * icz
-    out[8] = dalpha_dad * dad1 + (d2a * dad1 - iad) * icz
-    out[9] = -out[7]
-    out[10] = -out[8]
-    out[11] = 0.0
-
-
-GEO_SIZE = 14
-
-
-@kernel
-def geometry(q, c, dynamic, out):
-    """Array form of :func:`geometry_s` (psi included): q holds at least (X_p, Y_p, X_g, Y_g);
-    out has 14 zeros."""
-    geometry_s(q[0], q[1], q[2], q[3], c, dynamic, out)
-    out[0] = psi_of(out, c, dynamic)
-
-
-@kernel_inline
-def psi_of(geo, c, dynamic):
-    """Meshing angle psi [rad] from a geometry block filled by :func:`geometry_s`."""
-    if dynamic == 0:
-        return c[C_ALPHA0]
-    return math.atan2(geo[12], geo[13])
-
-
-@kernel_inline
-def mesh_state_s(q0, q1, q2, q3, q4, v0, v1, v2, v3, v4, ce, se, omega, c, dynamic, geo):
-    """Delta, Delta', B_d, f(Delta), region at one instant (scalar form, no allocation).
-
-    ``ce, se`` = cos, sin of (phi + phi_e); ``geo`` (>= 14, zero-initialised) receives the
-    geometry (psi, B_d, derivatives, sin psi, cos psi). Returns (delta, ddelta, bd, f, region).
-    """
-    geometry_s(q0, q1, q2, q3, c, dynamic, geo)
-    bd = geo[1]
-    sp = geo[12]
-    cp = geo[13]
-    e1 = c[C_E1]
-    delta = (q0 - q2) * sp - (q1 - q3) * cp + q4 - e1 * ce
-    ddelta = (v0 - v2) * sp - (v1 - v3) * cp + v4 + e1 * omega * se
-    if dynamic != 0:
-        dm = (q0 - q2) * cp + (q1 - q3) * sp  # dDelta/dpsi
-        psid = geo[7] * v0 + geo[8] * v1 + geo[9] * v2 + geo[10] * v3
-        ddelta += psid * dm
-    f, region = backlash(delta, bd)
-    return delta, ddelta, bd, f, region
 
 
 @kernel
 def mesh_state(q, v, ce, se, omega, c, dynamic, geo):
-    """Array form of :func:`mesh_state_s` (q, v of length 5)."""
-    return mesh_state_s(q[0], q[1], q[2], q[3], q[4], v[0], v[1], v[2], v[3], v[4], ce, se, omega, c, dynamic, geo)
+    """Delta, Delta', B_d, f(Delta), region at one instant (q, v of length 5), array form of
+    :func:`mesh_t`; ``geo`` (>= 14, zero-initialised) receives the geometry (see :func:`geometry`).
+    ``ce, se`` = cos, sin of (phi + phi_e)."""
+    geometry(q, c, dynamic, geo)
+    s = (q[0], q[1], q[2], q[3], q[4], v[0], v[1], v[2], v[3], v[4])
+    delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh_t(s, ce, se, omega, step_consts(c), dynamic)
+    return delta, ddelta, bd, f, region
 
 
 FRICTION_SHARPNESS = 10.0
-
-
-@kernel_inline
-def friction_factor(ce, se, c):
-    """[friction extension, GearParams.friction] mu s(phi), s = tanh(10 sin phi): the tangential
-    (off line-of-action) tooth friction force per unit mesh force. ``ce, se`` = cos, sin(phi + phi_e).
-    The friction force mu s F acts on the pinion along (cos psi, sin psi) and on the gear opposite;
-    its moment on the gears is neglected. Returns 0 when friction is off (the paper's model)."""
-    mu = c[C_MU]
-    if mu == 0.0:
-        return 0.0
-    sphi = se * math.cos(c[C_PHI_E]) - ce * math.sin(c[C_PHI_E])
-    return mu * math.tanh(FRICTION_SHARPNESS * sphi)
 
 
 @kernel
 def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
     """Accelerations a = q'' (natural time) at one instant; returns the mesh force Fhat.
 
-    ``kk`` = 1 + kappa cos(phi + phi_k) is the stiffness factor.
+    ``kk`` = 1 + kappa cos(phi + phi_k) is the stiffness factor; psi is left in geo[0].
     """
+    k = step_consts(c)
     delta, ddelta, bd, f, region = mesh_state(q, v, ce, se, omega, c, dynamic, geo)
-    geo[0] = psi_of(geo, c, dynamic)
-    F = 2.0 * c[C_XI_M] * ddelta + kk * f
+    F = k[8] * ddelta + kk * f
     sp = geo[12]
     cp = geo[13]
-    ep = c[C_EPS_P]
-    eg = c[C_EPS_G]
-    sgp = c[C_SIG_P]
-    sgg = c[C_SIG_G]
-    fr = friction_factor(ce, se, c)  # [friction extension] 0 unless GearParams.friction > 0
-    a[0] = -(2.0 * c[C_XI_BP] * sgp * v[0] + sgp * sgp * q[0] + F * (sp - fr * cp) / ep)
-    a[1] = -(2.0 * c[C_XI_BP] * sgp * v[1] + sgp * sgp * q[1] - F * (cp + fr * sp) / ep) - c[C_GP] / ep
-    a[2] = -(2.0 * c[C_XI_BG] * sgg * v[2] + sgg * sgg * q[2] - F * (sp - fr * cp) / eg)
-    a[3] = -(2.0 * c[C_XI_BG] * sgg * v[3] + sgg * sgg * q[3] + F * (cp + fr * sp) / eg) - c[C_GG] / eg
-    a[4] = c[C_FS] - F
+    fr = friction_t(ce, se, k)  # [friction extension] 0 unless GearParams.friction > 0
+    a[0] = -(k[2] * v[0] + k[4] * q[0] + F * (sp - fr * cp) * k[0])
+    a[1] = -(k[2] * v[1] + k[4] * q[1] - F * (cp + fr * sp) * k[0]) + k[6]
+    a[2] = -(k[3] * v[2] + k[5] * q[2] - F * (sp - fr * cp) * k[1])
+    a[3] = -(k[3] * v[3] + k[5] * q[3] + F * (cp + fr * sp) * k[1]) + k[7]
+    a[4] = k[9] - F
     return F
 
 
@@ -335,8 +258,9 @@ def geometry_t(q0, q1, q2, q3, k):
     """Dynamic-model geometry (eqs. 5-8) at positions (X_p, Y_p, X_g, Y_g), no trigonometric call.
 
     Returns (dB/dX_p, dB/dY_p, dpsi/dX_p, dpsi/dY_p, B_d, sin psi, cos psi); the derivatives
-    with respect to (X_g, Y_g) are their negatives and those with respect to U are zero. Same
-    formulas as :func:`geometry_s` with two divisions instead of four.
+    with respect to (X_g, Y_g) are their negatives and those with respect to U are zero. With
+    ca = R/A_d, sa = sqrt(1 - ca^2) (alpha_d), cz = d1/A_d and z = -d2/A_d (the arcsin term):
+    sin psi = sa cz + ca z and cos psi = ca cz - sa z.
     """
     A0 = k[11]
     d1 = A0 - q0 + q2
@@ -403,7 +327,10 @@ def mesh_t(s, ce, se, omega, k, dynamic):
 
 @kernel_inline
 def friction_t(ce, se, k):
-    """[friction extension] mu tanh(10 sin phi) from (cos, sin)(phi + phi_e); 0 when mu = 0."""
+    """[friction extension, GearParams.friction] mu s(phi), s = tanh(10 sin phi): the tangential
+    (off line-of-action) tooth friction force per unit mesh force. ``ce, se`` = cos, sin(phi + phi_e).
+    The friction force mu s F acts on the pinion along (cos psi, sin psi) and on the gear opposite;
+    its moment on the gears is neglected. Returns 0 when friction is off (the paper's model)."""
     mu = k[17]
     if mu == 0.0:
         return 0.0
@@ -661,15 +588,6 @@ def _diverged_t(s):
     m = abs(s[0]) + abs(s[1]) + abs(s[2]) + abs(s[3]) + abs(s[4])
     m += abs(s[5]) + abs(s[6]) + abs(s[7]) + abs(s[8]) + abs(s[9])
     return not (m <= DIVERGENCE_LIMIT)
-
-
-@kernel_inline
-def _diverged(x):
-    for i in range(NSTATE):
-        xi = x[i]
-        if not math.isfinite(xi) or abs(xi) > DIVERGENCE_LIMIT:
-            return True
-    return False
 
 
 @kernel
