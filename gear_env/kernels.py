@@ -338,6 +338,23 @@ def friction_t(ce, se, k):
 
 
 @kernel_inline
+def corrector_t(p, a0, a1, a2, a3, a4, bh2, gh):
+    """Newmark corrector: (q, v) = predictors p = (q~, v~) + (beta h^2, gamma h) x acceleration."""
+    return (
+        p[0] + bh2 * a0,
+        p[1] + bh2 * a1,
+        p[2] + bh2 * a2,
+        p[3] + bh2 * a3,
+        p[4] + bh2 * a4,
+        p[5] + gh * a0,
+        p[6] + gh * a1,
+        p[7] + gh * a2,
+        p[8] + gh * a3,
+        p[9] + gh * a4,
+    )
+
+
+@kernel_inline
 def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
     """Attempt one Newmark step on the state tuple s = (q (5), v (5), a (5)).
 
@@ -361,18 +378,8 @@ def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
     a0, a1, a2, a3, a4 = g  # Newton's starting guess of the end-of-step acceleration
     fr = friction_t(ce, se, k)  # [friction extension] tilts the force off the LOA; 0 by default
     cd = gh * xim2
-    t = (
-        qp0 + bh2 * a0,
-        qp1 + bh2 * a1,
-        qp2 + bh2 * a2,
-        qp3 + bh2 * a3,
-        qp4 + bh2 * a4,
-        vp0 + gh * a0,
-        vp1 + gh * a1,
-        vp2 + gh * a2,
-        vp3 + gh * a3,
-        vp4 + gh * a4,
-    )
+    pv = (qp0, qp1, qp2, qp3, qp4, vp0, vp1, vp2, vp3, vp4)
+    t = corrector_t(pv, a0, a1, a2, a3, a4, bh2, gh)
     delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh_t(t, ce, se, w_b, k, dynamic)
     F = xim2 * ddelta + kk * f
     for _it in range(max_iter):
@@ -419,23 +426,12 @@ def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
         dmax = max(abs(e0), abs(e1), abs(e2), abs(e3), abs(e4))
         if not math.isfinite(dmax):
             return False, s, F, region, delta, bd, sp, cp
-        t = (
-            qp0 + bh2 * a0,
-            qp1 + bh2 * a1,
-            qp2 + bh2 * a2,
-            qp3 + bh2 * a3,
-            qp4 + bh2 * a4,
-            vp0 + gh * a0,
-            vp1 + gh * a1,
-            vp2 + gh * a2,
-            vp3 + gh * a3,
-            vp4 + gh * a4,
-        )
+        t = corrector_t(pv, a0, a1, a2, a3, a4, bh2, gh)
         if dynamic != 0 and bh2 * dmax <= DQ_LINEAR:
             # Final update of the dynamic model: the geometry at the new positions is the
             # first-order Taylor expansion of eqs. (5)-(8) about the previous iterate (the
-            # remainder, curvature of B_d(q) ~1e-3 per b0 times |dq|^2 <= 1e-8, is below 1e-11), which saves the
-            # square roots and divisions of a second geometry evaluation.
+            # remainder, curvature of B_d(q) ~1e-3 per b0 times |dq|^2 <= 1e-8, is below 1e-11),
+            # which saves the square roots and divisions of a second geometry evaluation.
             dpsi = bh2 * (dp0 * (e0 - e2) + dp1 * (e1 - e3))
             bd1 = bd + bh2 * (db0 * (e0 - e2) + db1 * (e1 - e3))
             sp1 = sp + cp * dpsi
