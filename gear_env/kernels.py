@@ -536,6 +536,23 @@ def guess_t(s0, s1, last):
 
 
 @kernel_inline
+def interval_step_t(j, s, g, wa, hc, phi0, dphi, w0, ww, total, n_steps, tab, c, k, dynamic, max_iter, tol):
+    """Step j of an interval of ``total`` steps in which omega goes linearly in time from w0
+    (omega^2 linear in the step index, ww = w1^2 - w0^2): the step from omega ``wa`` with the
+    excitation table ``tab`` (:func:`_excitation_table`). ``hc`` are the coefficients of the
+    previous step, reused while omega is constant. Returns :func:`newmark_step_t`'s tuple followed
+    by (omega at the end, step coefficients, phase index of the end of the step)."""
+    wb = w0 if ww == 0.0 else math.sqrt(w0 * w0 + ww * (j + 1.0) / total)
+    if ww != 0.0:
+        hc = step_coeffs(2.0 * dphi / (wa + wb), k)
+    m = (j + 1) % n_steps
+    st, s1, F, region, delta, bd, sp, cp, split = newmark_step_t(
+        s, g, phi0 + dphi * j, dphi, tab[m, 0], tab[m, 1], tab[m, 2], wa, wb, hc, c, k, dynamic, max_iter, tol
+    )
+    return st, s1, F, region, delta, bd, sp, cp, split, wb, hc, m
+
+
+@kernel_inline
 def load_t(x, a):
     """State tuple (q, v, a) from the arrays x (10) and a (5)."""
     return (x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9], a[0], a[1], a[2], a[3], a[4])
@@ -643,12 +660,8 @@ def integrate_record(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, out, ma
     wa = w0
     hc = step_coeffs(dphi / w0, k)
     for j in range(total):
-        wb = w0 if ww == 0.0 else math.sqrt(w0 * w0 + ww * (j + 1.0) / total)
-        if ww != 0.0:
-            hc = step_coeffs(2.0 * dphi / (wa + wb), k)
-        m = (j + 1) % n_steps
-        st, s1, F, region, delta, bd, sp, cp, split = newmark_step_t(
-            s, g, phi0 + dphi * j, dphi, tab[m, 0], tab[m, 1], tab[m, 2], wa, wb, hc, c, k, dynamic, max_iter, tol
+        st, s1, F, region, delta, bd, sp, cp, split, wb, hc, m = interval_step_t(
+            j, s, g, wa, hc, phi0, dphi, w0, ww, total, n_steps, tab, c, k, dynamic, max_iter, tol
         )
         el += hc[0]
         if st != OK:
@@ -739,12 +752,8 @@ def integrate_stats(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare
     status = OK
     done = n_periods
     for j in range(total):
-        wb = w0 if ww == 0.0 else math.sqrt(w0 * w0 + ww * (j + 1.0) / total)
-        if ww != 0.0:
-            hc = step_coeffs(2.0 * dphi / (wa + wb), k)
-        m = (j + 1) % n_steps
-        st, s1, F, region, delta, bd, sp, cp, split = newmark_step_t(
-            s, g, phi0 + dphi * j, dphi, tab[m, 0], tab[m, 1], tab[m, 2], wa, wb, hc, c, k, dynamic, max_iter, tol
+        st, s1, F, region, delta, bd, sp, cp, split, wb, hc, m = interval_step_t(
+            j, s, g, wa, hc, phi0, dphi, w0, ww, total, n_steps, tab, c, k, dynamic, max_iter, tol
         )
         h = hc[0]
         el += h
