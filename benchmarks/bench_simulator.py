@@ -136,6 +136,71 @@ def ratio_vs_solve_ivp(model: str, omega: float, periods: int, n_steps: int) -> 
     return res
 
 
+def work_precision(model: str, omega: float, periods: int, fine_steps: int = 512) -> dict:
+    """Work-precision data of both integrators on one piece of work (same omega, start state and
+    periods): Newmark at several step counts and DOP853 (events and plain) at rtol 1e-1 ... 1e-7.
+
+    Returns {"newmark": [(N, error, CPU s)], "events": [(rtol, error, CPU s)], "plain": [...]}.
+    Errors are the max Poincare-state deviation (b0 units) from the rtol 1e-12 reference.
+    """
+    from gear_env import GearParams, GearSimulator
+    from gear_env.reference import reference_poincare
+
+    p = GearParams()
+    sim = GearSimulator(p, model, fine_steps, omega)
+    sim.advance(300)
+    start = sim.state
+    fine = reference_poincare(omega, model, p, 0, periods, start, rtol=1e-12, atol=1e-13).states
+    out: dict = {"newmark": [], "events": [], "plain": []}
+    for n in (48, 64, 96, 128, 192, 256, 384):
+
+        def nm(n=n):
+            return GearSimulator(p, model, n, omega, start).advance(periods)
+
+        err = float(np.max(np.abs(nm().poincare[:, :10] - fine)))
+        out["newmark"].append((n, err, _timeit(nm, 0.2)))
+    for label, events in (("events", True), ("plain", False)):
+        for k in range(1, 8):
+            rtol = 10.0**-k
+
+            def run(rtol=rtol, events=events):
+                return reference_poincare(
+                    omega, model, p, 0, periods, start, rtol=rtol, atol=rtol * 1e-2, events=events
+                )
+
+            t = time.process_time()
+            r = run()
+            dt = time.process_time() - t
+            out[label].append((rtol, float(np.max(np.abs(r.states - fine))), dt))
+    return out
+
+
+def cheapest(rows: list, eps: float) -> tuple | None:
+    """The row of least CPU time whose error is <= eps (None if no row reaches it)."""
+    ok = [r for r in rows if r[1] <= eps]
+    return min(ok, key=lambda r: r[2]) if ok else None
+
+
+def print_work_precision(model: str, omega: float, periods: int) -> None:
+    wp = work_precision(model, omega, periods)
+    print(f"{model:8s} omega={omega}: {periods} periods")
+    print("    Newmark N  : " + "  ".join(f"{n}: {e:.1e} / {t * 1e3:.2f} ms" for n, e, t in wp["newmark"]))
+    for label in ("events", "plain"):
+        cells = "  ".join(f"{r:.0e}: {e:.1e} / {t * 1e3:.0f} ms" for r, e, t in wp[label])
+        print(f"    DOP853 {label:6s}: {cells}")
+    for eps in (1e-3, 1e-4):
+        a = cheapest(wp["newmark"], eps)
+        cells = []
+        for label in ("events", "plain"):
+            b = cheapest(wp[label], eps)
+            if a is None or b is None:
+                cells.append(f"{label}: not reached")
+            else:
+                cells.append(f"{label} rtol {b[0]:.0e} {b[2] * 1e3:.0f} ms -> {b[2] / a[2]:,.0f}x")
+        head = "no N reached it" if a is None else f"Newmark N={a[0]} {a[2] * 1e3:.2f} ms"
+        print(f"    error <= {eps:.0e}: {head}; DOP853 " + "; ".join(cells))
+
+
 def machine() -> str:
     try:
         cpu = subprocess.run(["lscpu"], capture_output=True, text=True).stdout.splitlines()[:10]
@@ -148,6 +213,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description="simulator benchmark (one core)")
     ap.add_argument("--quick", action="store_true", help="fewer periods (smoke test)")
     ap.add_argument("--no-pin", action="store_true", help="do not pin to one CPU")
+    ap.add_argument(
+        "--work-precision",
+        action="store_true",
+        help="also print work-precision data (Newmark N ladder vs DOP853 rtol ladder)",
+    )
     args = ap.parse_args(argv)
     if not args.no_pin and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
@@ -206,6 +276,12 @@ def main(argv: list[str] | None = None) -> int:
                     f"    {what}: rtol {s['rtol']:.1e} -> error {s['err']:.2e}, {s['time'] * 1e3:8.1f} ms CPU, "
                     f"{s['nfev']} RHS evals -> Newmark is {s['ratio']:,.0f}x faster"
                 )
+    if args.work_precision:
+        print(
+            "\n== work-precision: error (b0) / CPU time per run, and the cheapest run of each reaching an error bound"
+        )
+        for model, w in work:
+            print_work_precision(model, w, 20 if args.quick else 50)
     return 0
 
 

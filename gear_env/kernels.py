@@ -712,8 +712,19 @@ def integrate_stats(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare
     written back at the end, also when the run stops early. psi enters the statistics through
     sin psi (monotonic in psi, |psi| < pi/2), so no atan2 is evaluated per step.
     """
+    return integrate_stats_tab(
+        x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats,
+        _excitation_table(phi0, n_steps, c),
+    )  # fmt: skip
+
+
+@kernel
+def integrate_stats_tab(
+    x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab
+):
+    """:func:`integrate_stats` with the excitation table of the period given
+    (``_excitation_table(phi0, n_steps, c)``), for callers that run many short intervals."""
     work = np.zeros(WORK_SIZE)
-    tab = _excitation_table(phi0, n_steps, c)
     k = step_consts(c)
     if reset_stats:
         _stats_init(stats)

@@ -2,7 +2,7 @@
 
 Method (Benettin et al. 1980): a reference trajectory and a copy displaced by ``d0`` (Euclidean
 norm in the 10-dimensional state space, b0 units and b0 per unit natural time) are advanced one
-mesh period at a time with the simulator's own Newmark kernel (``kernels.integrate_stats_batch``); after
+mesh period at a time with the simulator's own Newmark kernel (``kernels.integrate_stats``); after
 each period the separation ``d`` is measured, ``log(d/d0)`` accumulated, and the copy is pulled back
 to distance ``d0`` along the current separation direction. The first ``skip`` periods only align
 the separation with the most unstable direction and are not counted.
@@ -108,53 +108,29 @@ def lyapunov_record(
     """Record ``periods`` mesh periods from state ``x`` (updated in place) at constant ``omega``
     while a copy displaced by ``d0`` runs alongside and is renormalised every period.
 
-    Both copies advance together, one mesh period per call of the simulator's batch kernel
-    (``kernels.integrate_stats_batch``), so this always uses the current kernels (a numba
-    function compiled here and calling into kernels.py would keep a stale on-disk cache when
-    kernels.py changes).
+    Both copies and the renormalisation run in one compiled call
+    (:func:`gear_env.analysis.lyapunov_kernel.lyapunov_pair`), one ``kernels.integrate_stats`` call
+    per period and copy, so the copy costs the physics and nothing else.
 
     Returns (exponent per unit natural time, Poincare samples (periods, 14), interval stats,
     natural time elapsed, sum of log(d/d0), natural time it was averaged over; the last two let
     a caller pool several windows). Raises SimulationDivergedError on blow-up.
     """
+    from .lyapunov_kernel import lyapunov_pair
+
     skip = default_skip(periods)
-    X = np.empty((2, K.NSTATE))
-    X[0] = x
-    u = _unit_direction(K.NSTATE)
-    X[1] = x + d0 * u
-    A = np.zeros((2, K.NDOF))
-    W = np.full(2, float(omega))
-    C = np.ascontiguousarray(np.broadcast_to(consts, (2, len(consts))))
-    dyn = np.full(2, code, dtype=np.int64)
-    pcb = np.empty((2, 1, K.N_PC))
-    stb = np.empty((2, K.N_STATS))
-    status = np.zeros(2, dtype=np.int64)
-    elapsed = np.zeros(2)
+    xr = np.ascontiguousarray(x, dtype=float).copy()
     pc = np.empty((periods, K.N_PC))
     st_all = np.empty((periods, K.N_STATS))
-    sum_log = 0.0
-    t_count = 0.0
-    t_all = 0.0
-    batch = K.integrate_stats_batch
-    for p in range(periods):
-        batch(X, A, W, W, 1, steps_per_period, C, dyn, pcb, stb, status, elapsed, NEWTON_MAX_ITER, NEWTON_TOL)
-        if status[0] != K.OK or status[1] != K.OK:
-            reason = f"integration failed (status {status.max()}) in the Lyapunov record"
-            raise SimulationDivergedError(p, reason, omega)
-        pc[p] = pcb[0, 0]
-        st_all[p] = stb[0]
-        s = float(elapsed[0])
-        t_all += s
-        dv = X[1] - X[0]
-        d = math.sqrt(float(dv @ dv))
-        if p >= skip:
-            sum_log += math.log(max(d, 1e-300) / d0)
-            t_count += s
-        if d > 0.0 and math.isfinite(d):
-            X[1] = X[0] + (d0 / d) * dv
-        else:  # separation lost below round-off: restart along the fixed direction
-            X[1] = X[0] + d0 * u
-    x[:] = X[0]
+    status, failed, sum_log, t_count, t_all = lyapunov_pair(
+        xr, float(omega), int(periods), int(steps_per_period), consts, int(code), float(d0),
+        _unit_direction(K.NSTATE), int(skip), pc, st_all, NEWTON_MAX_ITER, NEWTON_TOL,
+    )  # fmt: skip
+    if status != K.OK:
+        raise SimulationDivergedError(
+            int(failed), f"integration failed (status {status}) in the Lyapunov record", omega
+        )
+    x[:] = xr
     lam = sum_log / t_count if t_count > 0 else 0.0
     return float(lam), pc, merge_stats(st_all), float(t_all), float(sum_log), float(t_count)
 

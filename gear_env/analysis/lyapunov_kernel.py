@@ -1,0 +1,69 @@
+"""numba kernel of the two-trajectory (Benettin) Lyapunov record: both copies and the per-period
+renormalisation in one compiled call.
+
+Kept in a module of its own so that the Python API (:mod:`gear_env.analysis.lyapunov`) holds no
+compiled code. The on-disk cache is keyed on a hash of this file and of kernels.py
+(:mod:`gear_env._numba_cache`), so a change of the Newmark kernels never meets a stale copy.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import kernels as K
+
+
+@K.kernel
+def lyapunov_pair(x, omega, periods, n_steps, c, dynamic, d0, u, skip, pc, st_all, max_iter, tol):
+    """Advance the reference state ``x`` (10, updated in place) and a copy at distance ``d0`` along
+    the unit vector ``u`` by ``periods`` mesh periods at constant ``omega``, renormalising the copy
+    to ``d0`` along the current separation after every period.
+
+    Each period of each copy is one :func:`gear_env.kernels.integrate_stats_tab` call from phase 0
+    (consistent start acceleration), as a per-period ``integrate_stats`` call would do, with the
+    excitation table computed once. Writes the reference's Poincare sample and interval
+    statistics of period p into ``pc[p]`` (N_PC) and ``st_all[p]`` (N_STATS). Periods before
+    ``skip`` only align the separation.
+
+    Returns (status, failed period, sum of log(d/d0) over periods >= skip, natural time of those
+    periods, natural time of all periods).
+    """
+    n = K.NSTATE
+    xc = np.empty(n)
+    for i in range(n):
+        xc[i] = x[i] + d0 * u[i]
+    a0 = np.zeros(K.NDOF)
+    a1 = np.zeros(K.NDOF)
+    pc1 = np.empty((1, K.N_PC))
+    st1 = np.empty(K.N_STATS)
+    sum_log = 0.0
+    t_count = 0.0
+    t_all = 0.0
+    for p in range(periods):
+        s0, _, el = K.integrate_stats(
+            x, a0, 0.0, omega, omega, 1, n_steps, c, dynamic, pc[p : p + 1], st_all[p], max_iter, tol, True
+        )
+        s1, _, _ = K.integrate_stats(xc, a1, 0.0, omega, omega, 1, n_steps, c, dynamic, pc1, st1, max_iter, tol, True)
+        if s0 != K.OK:
+            return s0, p, sum_log, t_count, t_all
+        if s1 != K.OK:
+            return s1, p, sum_log, t_count, t_all
+        t_all += el
+        dd = 0.0
+        for i in range(n):
+            dv = xc[i] - x[i]
+            dd += dv * dv
+        d = math.sqrt(dd)
+        if p >= skip:
+            sum_log += math.log(max(d, 1e-300) / d0)
+            t_count += el
+        if d > 0.0 and math.isfinite(d):
+            f = d0 / d
+            for i in range(n):
+                xc[i] = x[i] + f * (xc[i] - x[i])
+        else:  # separation lost below round-off: restart along the fixed direction
+            for i in range(n):
+                xc[i] = x[i] + d0 * u[i]
+    return K.OK, periods, sum_log, t_count, t_all
