@@ -248,9 +248,10 @@ def step_coeffs(h, k):
     gear bearings). Loop-invariant while omega is constant."""
     bh2 = BETA * h * h
     gh = GAMMA * h
-    idd0 = 1.0 / (1.0 + gh * k[2] + bh2 * k[4])
-    idd2 = 1.0 / (1.0 + gh * k[3] + bh2 * k[5])
-    return h, bh2, gh, h * h * (0.5 - BETA), h * (1.0 - GAMMA), idd0, idd2
+    d0 = 1.0 + gh * k[2] + bh2 * k[4]
+    d2 = 1.0 + gh * k[3] + bh2 * k[5]
+    q = 1.0 / (d0 * d2)  # one division for both inverses (recomputed every step of a ramp)
+    return h, bh2, gh, h * h * (0.5 - BETA), h * (1.0 - GAMMA), q * d2, q * d0
 
 
 @kernel_inline
@@ -259,26 +260,32 @@ def geometry_t(q0, q1, q2, q3, k):
 
     Returns (dB/dX_p, dB/dY_p, dpsi/dX_p, dpsi/dY_p, B_d, sin psi, cos psi); the derivatives
     with respect to (X_g, Y_g) are their negatives and those with respect to U are zero. With
-    ca = R/A_d, sa = sqrt(1 - ca^2) (alpha_d), cz = d1/A_d and z = -d2/A_d (the arcsin term):
-    sin psi = sa cz + ca z and cos psi = ca cz - sa z.
+    ca = R/A_d, sa = sqrt(1 - ca^2) = sqrt(A_d^2 - R^2)/A_d (alpha_d), cz = d1/A_d and
+    z = -d2/A_d (the arcsin term): sin psi = sa cz + ca z and cos psi = ca cz - sa z. Two square
+    roots and one division (the divider is the bottleneck of a step on some CPUs).
     """
     A0 = k[11]
+    R = k[12]
     d1 = A0 - q0 + q2
     d2 = q1 - q3
-    ad = math.sqrt(d1 * d1 + d2 * d2)
-    iad = 1.0 / ad
-    ca = k[12] * iad
-    s2 = 1.0 - ca * ca
-    if s2 < 1e-30:
-        s2 = 1e-30
-    sa = math.sqrt(s2)
-    ta = sa * ad * k[13]
+    ad2 = d1 * d1 + d2 * d2
+    ad = math.sqrt(ad2)
+    r2 = ad2 - R * R  # A_d^2 sin^2(alpha_d)
+    if r2 < 1e-30 * ad2:
+        r2 = 1e-30 * ad2
+    rs = math.sqrt(r2)  # A_d sin(alpha_d)
+    rd = rs * d1
+    pinv = 1.0 / (ad * rd)  # the one division: 1/A_d = pinv rd, 1/(sa cz) = pinv A_d A_d^2
+    iad = pinv * rd
+    inv = pinv * ad * ad2
+    ca = R * iad
+    sa = rs * iad
+    ta = rs * k[13]
     cz = d1 * iad
     z = -d2 * iad
     sp = sa * cz + ca * z
     cp = ca * cz - sa * z
     bd = k[14] + (ad - A0) * ta
-    inv = 1.0 / (sa * cz)
     dalpha_dad = ca * iad * cz * inv  # ca / (A_d sa)
     icz = sa * inv
     db_dad = ta + (ad - A0) * (1.0 + ta * ta) * dalpha_dad
@@ -538,11 +545,12 @@ def guess_t(s0, s1, last):
 @kernel_inline
 def interval_step_t(j, s, g, wa, hc, phi0, dphi, w0, ww, total, n_steps, tab, c, k, dynamic, max_iter, tol):
     """Step j of an interval of ``total`` steps in which omega goes linearly in time from w0
-    (omega^2 linear in the step index, ww = w1^2 - w0^2): the step from omega ``wa`` with the
-    excitation table ``tab`` (:func:`_excitation_table`). ``hc`` are the coefficients of the
-    previous step, reused while omega is constant. Returns :func:`newmark_step_t`'s tuple followed
-    by (omega at the end, step coefficients, phase index of the end of the step)."""
-    wb = w0 if ww == 0.0 else math.sqrt(w0 * w0 + ww * (j + 1.0) / total)
+    (omega^2 linear in the step index; ``ww`` = (w1^2 - w0^2)/total, its increment per step): the
+    step from omega ``wa`` with the excitation table ``tab`` (:func:`_excitation_table`). ``hc``
+    are the coefficients of the previous step, reused while omega is constant. Returns
+    :func:`newmark_step_t`'s tuple followed by (omega at the end, step coefficients, phase index
+    of the end of the step)."""
+    wb = w0 if ww == 0.0 else math.sqrt(w0 * w0 + ww * (j + 1.0))
     if ww != 0.0:
         hc = step_coeffs(2.0 * dphi / (wa + wb), k)
     m = (j + 1) % n_steps
@@ -642,7 +650,7 @@ def integrate_record(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, out, ma
     k = step_consts(c)
     total = n_periods * n_steps
     dphi = TWO_PI / n_steps
-    ww = w1 * w1 - w0 * w0
+    ww = (w1 * w1 - w0 * w0) / total
     F0, region, delta, bd = start_step(x, a, phi0, w0, c, dynamic, work)
     for i in range(NSTATE):
         out[0, i] = x[i]
@@ -730,7 +738,7 @@ def integrate_stats_tab(
         _stats_init(stats)
     total = n_periods * n_steps
     dphi = TWO_PI / n_steps
-    ww = w1 * w1 - w0 * w0
+    ww = (w1 * w1 - w0 * w0) / total
     F_prev, reg_prev, delta, bd = start_step(x, a, phi0, w0, c, dynamic, work)
     s = load_t(x, a)
     g = (a[0], a[1], a[2], a[3], a[4])
