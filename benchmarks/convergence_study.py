@@ -8,9 +8,9 @@ over those Poincare points of |state_newmark - state_reference| over all 10 stat
 velocities per unit natural time), and separately of Delta. The observed order is the least-squares slope of log(error)
 vs log(N) over N = 32..256.
 
-    /work/venv/bin/python benchmarks/convergence_study.py            # full table (~1 min)
-    /work/venv/bin/python benchmarks/convergence_study.py --omegas 1.2 2.8 --periods 5
-    /work/venv/bin/python benchmarks/convergence_study.py --fixed-point --omegas 0.8 1.5 2.8
+    python benchmarks/convergence_study.py            # full table (~1 min)
+    python benchmarks/convergence_study.py --omegas 1.2 2.8 --periods 5
+    python benchmarks/convergence_study.py --fixed-point --omegas 0.8 1.5 2.8
 """
 
 from __future__ import annotations

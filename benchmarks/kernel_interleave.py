@@ -1,0 +1,106 @@
+"""Is one Newmark step latency-bound or throughput-bound? Interleave two independent trajectories.
+
+A kernel whose step is a chain of dependent operations (latency-bound) leaves most of the core's
+execution units idle; stepping two independent trajectories in the same loop body then costs
+little more than one, and the time per step per trajectory drops towards half. A kernel limited by
+the number of instructions (throughput-bound, e.g. by register spills) gains nothing. This script
+compiles both loops from the simulator's own inline step (``kernels.interval_step_t``) and prints
+ns per step per trajectory and the gain, both models, in one run on one core:
+
+    python benchmarks/kernel_interleave.py
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+from numba import njit
+
+from gear_env import GearSimulator
+from gear_env import kernels as K
+
+
+@njit(error_model="numpy")
+def one_lane(x, a, w0, n_periods, n_steps, c, dynamic):
+    tab = K._excitation_table(0.0, n_steps, c)
+    k = K.step_consts(c)
+    dphi = K.TWO_PI / n_steps
+    s = K.load_t(x, a)
+    g = (a[0], a[1], a[2], a[3], a[4])
+    hc = K.step_coeffs(dphi / w0, k)
+    total = n_periods * n_steps
+    acc = 0.0
+    for j in range(total):
+        st, s1, F, region, delta, bd, sp, cp, split, wb, hc, m = K.interval_step_t(
+            j, s, g, w0, hc, 0.0, dphi, w0, 0.0, total, n_steps, tab, c, k, dynamic, 12, 1e-10
+        )
+        g = K.guess_t(s, s1, split or dynamic == 0)
+        s = s1
+        acc += F
+    K.store_t(s, x, a)
+    return acc
+
+
+@njit(error_model="numpy")
+def two_lanes(x, a, x2, a2, w0, n_periods, n_steps, c, dynamic):
+    tab = K._excitation_table(0.0, n_steps, c)
+    k = K.step_consts(c)
+    dphi = K.TWO_PI / n_steps
+    s = K.load_t(x, a)
+    g = (a[0], a[1], a[2], a[3], a[4])
+    s2 = K.load_t(x2, a2)
+    g2 = (a2[0], a2[1], a2[2], a2[3], a2[4])
+    hc = K.step_coeffs(dphi / w0, k)
+    hc2 = hc
+    total = n_periods * n_steps
+    acc = 0.0
+    for j in range(total):
+        st, s1, F, region, delta, bd, sp, cp, split, wb, hc, m = K.interval_step_t(
+            j, s, g, w0, hc, 0.0, dphi, w0, 0.0, total, n_steps, tab, c, k, dynamic, 12, 1e-10
+        )
+        st2, s12, F2, region2, delta2, bd2, sp2, cp2, split2, wb2, hc2, m2 = K.interval_step_t(
+            j, s2, g2, w0, hc2, 0.0, dphi, w0, 0.0, total, n_steps, tab, c, k, dynamic, 12, 1e-10
+        )
+        g = K.guess_t(s, s1, split or dynamic == 0)
+        s = s1
+        g2 = K.guess_t(s2, s12, split2 or dynamic == 0)
+        s2 = s12
+        acc += F + F2
+    K.store_t(s, x, a)
+    K.store_t(s2, x2, a2)
+    return acc
+
+
+def main() -> None:
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
+    n, periods = 192, 3000
+    for model, code in (("constant", 0), ("dynamic", 1)):
+        for w in (0.45, 1.2):
+            sim = GearSimulator(model=model, omega=w, steps_per_period=n)
+            sim.advance(100)
+            x = sim.state.copy()
+            x2 = x.copy()
+            x2[4] += 0.01
+            c = sim.params.consts
+            one_lane(x.copy(), np.zeros(5), w, 1, n, c, code)
+            two_lanes(x.copy(), np.zeros(5), x2.copy(), np.zeros(5), w, 1, n, c, code)
+            t1 = t2 = np.inf
+            for _ in range(5):
+                t = time.process_time()
+                one_lane(x.copy(), np.zeros(5), w, periods, n, c, code)
+                t1 = min(t1, time.process_time() - t)
+                t = time.process_time()
+                two_lanes(x.copy(), np.zeros(5), x2.copy(), np.zeros(5), w, periods, n, c, code)
+                t2 = min(t2, time.process_time() - t)
+            per = periods * n
+            print(
+                f"{model:8s} omega={w}: one trajectory {t1 / per * 1e9:5.1f} ns/step, two interleaved "
+                f"{t2 / (2 * per) * 1e9:5.1f} ns/step each -> gain {2 * t1 / t2:.2f}x"
+            )
+
+
+if __name__ == "__main__":
+    main()
