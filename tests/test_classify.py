@@ -168,3 +168,18 @@ def test_lyapunov_recorder_statistics_match_a_plain_record():
     assert rec.separation_fraction == pytest.approx(plain.separation_fraction, abs=1e-3)
     assert rec.separation_fraction > 0.1
     assert stats[K.ST_TIME] == pytest.approx(plain.stats[K.ST_TIME], rel=1e-12)
+
+
+def test_lyapunov_record_reports_a_blow_up_and_leaves_the_state():
+    """A diverging reference trajectory raises SimulationDivergedError naming the period (from the
+    compiled pair kernel), never returns NaN, and leaves the caller's state array untouched."""
+    from gear_env.analysis.lyapunov import lyapunov_record
+    from gear_env.errors import SimulationDivergedError
+    from gear_env.params import GearParams, model_code
+
+    x = np.r_[np.zeros(4), 5e5, np.zeros(4), 1e6]  # |q| + |v| beyond the divergence limit
+    before = x.copy()
+    with pytest.raises(SimulationDivergedError, match="Lyapunov record") as exc:
+        lyapunov_record(x, 1.0, 10, 16, GearParams().consts, model_code("constant"), 1e-8)
+    assert exc.value.period == 0
+    assert np.array_equal(x, before)
