@@ -262,7 +262,7 @@ def geometry_t(q0, q1, q2, q3, k):
     with respect to (X_g, Y_g) are their negatives and those with respect to U are zero. With
     ca = R/A_d, sa = sqrt(1 - ca^2) = sqrt(A_d^2 - R^2)/A_d (alpha_d), cz = d1/A_d and
     z = -d2/A_d (the arcsin term): sin psi = sa cz + ca z and cos psi = ca cz - sa z. Two square
-    roots and one division (the divider is the bottleneck of a step on some CPUs).
+    roots and one division (divisions and roots are the dearest operations of a step).
     """
     A0 = k[11]
     R = k[12]
