@@ -11,7 +11,7 @@ Prints:
    straight through the contact kinks and with event location), and both are timed back to back
    (median of 3 paired ratios, robust to the VM's speed drift);
 4. with ``--work-precision``: errors and times of Newmark at N = 48 ... 384 and DOP853 at
-   rtol = 1e-1 ... 1e-7, and the paired ratio of the cheapest run of each that reaches an error
+   rtol = 1e-1 ... 1e-7, and the paired ratio of the smallest N and the loosest rtol that reach an error
    of 1e-3 (the accuracy the tests require) and 1e-4.
 
     python benchmarks/bench_simulator.py [--work-precision]    (pins itself to one core)
@@ -304,9 +304,7 @@ def main(argv: list[str] | None = None) -> int:
                     f"{s['nfev']} RHS evals -> Newmark is {s['ratio']:,.0f}x faster"
                 )
     if args.work_precision:
-        print(
-            "\n== work-precision: error (b0) / CPU time per run, and the cheapest run of each reaching an error bound"
-        )
+        print("\n== work-precision: error (b0) / CPU time per run; smallest N and loosest rtol reaching an error bound")
         for model, w in work:
             print_work_precision(model, w, 20 if args.quick else 50)
     return 0
