@@ -21,7 +21,14 @@ import os
 from pathlib import Path
 
 # files whose njit code is cached (their constants and callees included)
-_SOURCES = ("params.py", "kernels.py", "env_kernels.py", "analysis/lyapunov_kernel.py", "analysis/testsystems.py")
+_SOURCES = (
+    "params.py",
+    "kernels.py",
+    "batch_kernels.py",
+    "env_kernels.py",
+    "analysis/lyapunov_kernel.py",
+    "analysis/testsystems.py",
+)
 
 
 def source_hash() -> str:

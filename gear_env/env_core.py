@@ -3,9 +3,11 @@
 One :class:`GearSpeedCore` holds ``n`` independent gear pairs as plain arrays (state, omega,
 Poincare history, episode accumulators) and advances any subset of them with the numba kernels.
 The single environment is a core with ``n = 1`` (advanced with ``kernels.integrate_stats``), the
-vector environment a core with ``n = num_envs`` (all rows in one ``integrate_stats_batch`` call);
-features and rewards are computed by the same vectorised NumPy code, so the two give bit-identical
-trajectories for the same seeds.
+vector environment a core with ``n = num_envs`` (all rows in one call of
+``batch_kernels.integrate_stats_lanes``, which steps the rows together with SIMD, or of
+``kernels.integrate_stats_batch`` below LANES_MIN rows); features and rewards are computed by the
+same compiled code, and every physics kernel does the same arithmetic per system, so the two give
+bit-identical trajectories for the same seeds.
 
 Units: omega is Omega/omega_n; displacements in b0; forces in k_m0 b0 (normalised here by the
 static mesh force F_s); time per step in seconds of physical time.
@@ -18,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from . import batch_kernels as BK
 from . import env_kernels as EK
 from . import kernels as K
 from .env_config import GearSpeedConfig
@@ -25,6 +28,8 @@ from .params import C_FS, GearParams, model_code
 from .simulator import NEWTON_MAX_ITER, NEWTON_TOL
 
 MAX_PERIOD = EK.MAX_PERIOD
+LANES_MIN = 2
+"""Batches of at least this many rows are advanced by ``batch_kernels.integrate_stats_lanes``."""
 """Longest periodic orbit (in mesh periods) recognised by the periodicity defect."""
 
 SENSOR_NAMES = (
@@ -196,10 +201,18 @@ class GearSpeedCore:
         elapsed = np.zeros(m)
         X = self.X[rows]
         A = self.A[rows]
-        K.integrate_stats_batch(
-            X, A, np.ascontiguousarray(w0, float), np.ascontiguousarray(w1, float), periods, cfg.steps_per_period,
-            self.C[rows], self.codes[rows], pc, st, status, elapsed, NEWTON_MAX_ITER, NEWTON_TOL,
-        )  # fmt: skip
+        W0 = np.ascontiguousarray(w0, float)
+        W1 = np.ascontiguousarray(w1, float)
+        if m >= LANES_MIN:  # SIMD across the rows (same numbers as the scalar batch kernel)
+            BK.integrate_stats_lanes(
+                X, A, W0, W1, periods, cfg.steps_per_period, self.C[rows], self.code, pc, st, status, elapsed,
+                NEWTON_MAX_ITER, NEWTON_TOL,
+            )  # fmt: skip
+        else:
+            K.integrate_stats_batch(
+                X, A, W0, W1, periods, cfg.steps_per_period, self.C[rows], self.codes[rows], pc, st, status,
+                elapsed, NEWTON_MAX_ITER, NEWTON_TOL,
+            )  # fmt: skip
         # the kernel flags non-finite or exploding states; a non-finite statistic would mean the same
         ok = (status == K.OK) & np.isfinite(st).all(axis=1)
         self.X[rows[ok]] = X[ok]

@@ -361,17 +361,17 @@ def corrector_t(p, a0, a1, a2, a3, a4, bh2, gh):
     )
 
 
-@kernel_inline
-def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
-    """Attempt one Newmark step on the state tuple s = (q (5), v (5), a (5)).
+NEWTON_MORE = 0  # newton_iter_t: iterate again
+NEWTON_DONE = 1  # newton_iter_t: converged, (t, a) is the new state
+NEWTON_BAD = 2  # newton_iter_t: non-finite update
 
-    ``hc`` = :func:`step_coeffs` of the step, ``(ce, se, kk)`` the excitation and ``w_b`` the
-    meshing frequency at its end. Returns (converged, new state tuple, F, region, Delta, B_d,
-    sin psi, cos psi); on failure the state tuple returned is the input one.
-    """
-    iep, ieg, c0, c2, k0, k2, ext1, ext3, xim2, Fs = k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8], k[9]
+
+@kernel_inline
+def newton_start_t(s, g, ce, se, w_b, hc, k, dynamic):
+    """Predictors and the first corrector of a Newmark step from the state tuple s = (q, v, a)
+    with the guess g of the end-of-step acceleration. Returns (predictors pv = (q~, v~), corrected
+    (q, v) t at g, :func:`mesh_t` at t)."""
     h, bh2, gh, hh, h1, idd0, idd2 = hc
-    # predictors
     qp0 = s[0] + h * s[5] + hh * s[10]
     qp1 = s[1] + h * s[6] + hh * s[11]
     qp2 = s[2] + h * s[7] + hh * s[12]
@@ -382,92 +382,134 @@ def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
     vp2 = s[7] + h1 * s[12]
     vp3 = s[8] + h1 * s[13]
     vp4 = s[9] + h1 * s[14]
-    a0, a1, a2, a3, a4 = g  # Newton's starting guess of the end-of-step acceleration
-    fr = friction_t(ce, se, k)  # [friction extension] tilts the force off the LOA; 0 by default
-    cd = gh * xim2
     pv = (qp0, qp1, qp2, qp3, qp4, vp0, vp1, vp2, vp3, vp4)
-    t = corrector_t(pv, a0, a1, a2, a3, a4, bh2, gh)
-    delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh_t(t, ce, se, w_b, k, dynamic)
+    t = corrector_t(pv, g[0], g[1], g[2], g[3], g[4], bh2, gh)
+    return pv, t, mesh_t(t, ce, se, w_b, k, dynamic)
+
+
+@kernel_inline
+def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_only=False, friction=True):
+    """One semismooth Newton iteration of a Newmark step (no loop inside, so a batch of them
+    vectorises across systems, see ``batch_kernels``).
+
+    ``a`` is the current iterate of the end-of-step acceleration, ``t`` = corrector at a and
+    ``mesh`` = :func:`mesh_t` at t. Returns (code, a, t, mesh, fin) with code NEWTON_MORE,
+    NEWTON_DONE (then (t, a) is the new state and fin = (F, region, Delta, B_d, sin psi,
+    cos psi) at its end) or NEWTON_BAD (non-finite update). With ``taylor_only`` (dynamic model)
+    an iteration that the Taylor update does not finish returns NEWTON_MORE without evaluating
+    the geometry again (the batch kernel redoes such steps with the scalar path). With
+    ``friction=False`` the friction extension is ignored (no tanh call; the batch kernel redoes
+    the steps of systems with friction).
+    """
+    iep, ieg, c0, c2, k0, k2, ext1, ext3, xim2, Fs = k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8], k[9]
+    h, bh2, gh, hh, h1, idd0, idd2 = hc
+    a0, a1, a2, a3, a4 = a
+    delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
     F = xim2 * ddelta + kk * f
+    fr = friction_t(ce, se, k) if friction else 0.0  # [friction extension] tilts the force off the LOA
+    cd = gh * xim2
+    w0 = (sp - fr * cp) * iep
+    w1 = -(cp + fr * sp) * iep
+    w2 = -(sp - fr * cp) * ieg
+    w3 = (cp + fr * sp) * ieg
+    # residual r = a + C v + K q + w F - ext
+    r0 = a0 + c0 * t[5] + k0 * t[0] + w0 * F
+    r1 = a1 + c0 * t[6] + k0 * t[1] + w1 * F - ext1
+    r2 = a2 + c2 * t[7] + k2 * t[2] + w2 * F
+    r3 = a3 + c2 * t[8] + k2 * t[3] + w3 * F - ext3
+    r4 = a4 + F - Fs
+    # u = dF/da = bh2 kk df/dq + gh 2 xi_m g, g = dDelta/dq (force direction frozen)
+    cs = bh2 * kk if region != 0 else 0.0
+    rr = cs * float(region)
+    cg = cd + cs
+    u0 = cg * sp - rr * db0
+    u1 = -cg * cp - rr * db1
+    u2 = -cg * sp + rr * db0
+    u3 = cg * cp + rr * db1
+    u4 = cg
+    # Sherman-Morrison: (D + w u^T) d = -r, D = diag(dd0, dd0, dd2, dd2, 1)
+    y0 = -r0 * idd0
+    y1 = -r1 * idd0
+    y2 = -r2 * idd2
+    y3 = -r3 * idd2
+    y4 = -r4
+    z0 = w0 * idd0
+    z1 = w1 * idd0
+    z2 = w2 * idd2
+    z3 = w3 * idd2
+    fac = (u0 * y0 + u1 * y1 + u2 * y2 + u3 * y3 + u4 * y4) / (1.0 + u0 * z0 + u1 * z1 + u2 * z2 + u3 * z3 + u4)
+    e0 = y0 - fac * z0
+    e1 = y1 - fac * z1
+    e2 = y2 - fac * z2
+    e3 = y3 - fac * z3
+    e4 = y4 - fac
+    a0 += e0
+    a1 += e1
+    a2 += e2
+    a3 += e3
+    a4 += e4
+    an = (a0, a1, a2, a3, a4)
+    dmax = max(abs(e0), abs(e1), abs(e2), abs(e3), abs(e4))
+    if not math.isfinite(dmax):
+        return NEWTON_BAD, an, t, mesh, (F, region, delta, bd, sp, cp)
+    t = corrector_t(pv, a0, a1, a2, a3, a4, bh2, gh)
+    if dynamic != 0 and bh2 * dmax <= DQ_LINEAR:
+        # Final update of the dynamic model: the geometry at the new positions is the
+        # first-order Taylor expansion of eqs. (5)-(8) about the previous iterate (the
+        # remainder, curvature of B_d(q) ~1e-3 per b0 times |dq|^2 <= 1e-8, is below 1e-11),
+        # which saves the square roots and divisions of a second geometry evaluation.
+        dpsi = bh2 * (dp0 * (e0 - e2) + dp1 * (e1 - e3))
+        bd1 = bd + bh2 * (db0 * (e0 - e2) + db1 * (e1 - e3))
+        sp1 = sp + cp * dpsi
+        cp1 = cp - sp * dpsi
+        dx = t[0] - t[2]
+        dy = t[1] - t[3]
+        delta1 = dx * sp1 - dy * cp1 + t[4] - k[10] * ce
+        psid = dp0 * (t[5] - t[7]) + dp1 * (t[6] - t[8])
+        ddelta1 = (t[5] - t[7]) * sp1 - (t[6] - t[8]) * cp1 + t[9] + k[10] * w_b * se + psid * (dx * cp1 + dy * sp1)
+        f1, region1 = backlash(delta1, bd1)
+        if region1 == region:
+            return NEWTON_DONE, an, t, mesh, (xim2 * ddelta1 + kk * f1, region1, delta1, bd1, sp1, cp1)
+    if dynamic != 0 and taylor_only:
+        return NEWTON_MORE, an, t, mesh, (F, region, delta, bd, sp, cp)
+    old_region = region
+    mesh = mesh_t(t, ce, se, w_b, k, dynamic)
+    delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
+    F = xim2 * ddelta + kk * f
+    # The backlash force is piecewise linear: for the constant model the update is exact
+    # once the region it assumed is the region it lands in. The dynamic model's geometry is
+    # mildly nonlinear: its update is accepted when small (tol) or when the position change
+    # of the last Newton update, bh2 * dmax, is below DQ_LINEAR, where the neglected
+    # quadratic term (curvature of B_d(q) ~ 1e-3 per b0 times DQ_LINEAR^2) is below 1e-11.
+    if region == old_region and (
+        dynamic == 0
+        or bh2 * dmax <= DQ_LINEAR
+        or dmax <= tol * (1.0 + max(abs(a0), abs(a1), abs(a2), abs(a3), abs(a4)))
+    ):
+        return NEWTON_DONE, an, t, mesh, (F, region, delta, bd, sp, cp)
+    return NEWTON_MORE, an, t, mesh, (F, region, delta, bd, sp, cp)
+
+
+@kernel_inline
+def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
+    """Attempt one Newmark step on the state tuple s = (q (5), v (5), a (5)).
+
+    ``hc`` = :func:`step_coeffs` of the step, ``(ce, se, kk)`` the excitation, ``w_b`` the
+    meshing frequency at its end and ``g`` Newton's starting guess of the end-of-step
+    acceleration. Returns (converged, new state tuple, F, region, Delta, B_d, sin psi, cos psi);
+    on failure the state tuple returned is the input one.
+    """
+    pv, t, mesh = newton_start_t(s, g, ce, se, w_b, hc, k, dynamic)
+    a = (g[0], g[1], g[2], g[3], g[4])
+    fin = (0.0, 0, 0.0, 0.0, 0.0, 0.0)
     for _it in range(max_iter):
-        w0 = (sp - fr * cp) * iep
-        w1 = -(cp + fr * sp) * iep
-        w2 = -(sp - fr * cp) * ieg
-        w3 = (cp + fr * sp) * ieg
-        # residual r = a + C v + K q + w F - ext
-        r0 = a0 + c0 * t[5] + k0 * t[0] + w0 * F
-        r1 = a1 + c0 * t[6] + k0 * t[1] + w1 * F - ext1
-        r2 = a2 + c2 * t[7] + k2 * t[2] + w2 * F
-        r3 = a3 + c2 * t[8] + k2 * t[3] + w3 * F - ext3
-        r4 = a4 + F - Fs
-        # u = dF/da = bh2 kk df/dq + gh 2 xi_m g, g = dDelta/dq (force direction frozen)
-        cs = bh2 * kk if region != 0 else 0.0
-        rr = cs * float(region)
-        cg = cd + cs
-        u0 = cg * sp - rr * db0
-        u1 = -cg * cp - rr * db1
-        u2 = -cg * sp + rr * db0
-        u3 = cg * cp + rr * db1
-        u4 = cg
-        # Sherman-Morrison: (D + w u^T) d = -r, D = diag(dd0, dd0, dd2, dd2, 1)
-        y0 = -r0 * idd0
-        y1 = -r1 * idd0
-        y2 = -r2 * idd2
-        y3 = -r3 * idd2
-        y4 = -r4
-        z0 = w0 * idd0
-        z1 = w1 * idd0
-        z2 = w2 * idd2
-        z3 = w3 * idd2
-        fac = (u0 * y0 + u1 * y1 + u2 * y2 + u3 * y3 + u4 * y4) / (1.0 + u0 * z0 + u1 * z1 + u2 * z2 + u3 * z3 + u4)
-        e0 = y0 - fac * z0
-        e1 = y1 - fac * z1
-        e2 = y2 - fac * z2
-        e3 = y3 - fac * z3
-        e4 = y4 - fac
-        a0 += e0
-        a1 += e1
-        a2 += e2
-        a3 += e3
-        a4 += e4
-        dmax = max(abs(e0), abs(e1), abs(e2), abs(e3), abs(e4))
-        if not math.isfinite(dmax):
-            return False, s, F, region, delta, bd, sp, cp
-        t = corrector_t(pv, a0, a1, a2, a3, a4, bh2, gh)
-        if dynamic != 0 and bh2 * dmax <= DQ_LINEAR:
-            # Final update of the dynamic model: the geometry at the new positions is the
-            # first-order Taylor expansion of eqs. (5)-(8) about the previous iterate (the
-            # remainder, curvature of B_d(q) ~1e-3 per b0 times |dq|^2 <= 1e-8, is below 1e-11),
-            # which saves the square roots and divisions of a second geometry evaluation.
-            dpsi = bh2 * (dp0 * (e0 - e2) + dp1 * (e1 - e3))
-            bd1 = bd + bh2 * (db0 * (e0 - e2) + db1 * (e1 - e3))
-            sp1 = sp + cp * dpsi
-            cp1 = cp - sp * dpsi
-            dx = t[0] - t[2]
-            dy = t[1] - t[3]
-            delta1 = dx * sp1 - dy * cp1 + t[4] - k[10] * ce
-            psid = dp0 * (t[5] - t[7]) + dp1 * (t[6] - t[8])
-            ddelta1 = (t[5] - t[7]) * sp1 - (t[6] - t[8]) * cp1 + t[9] + k[10] * w_b * se + psid * (dx * cp1 + dy * sp1)
-            f1, region1 = backlash(delta1, bd1)
-            if region1 == region:
-                s1 = (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], a0, a1, a2, a3, a4)
-                return True, s1, xim2 * ddelta1 + kk * f1, region1, delta1, bd1, sp1, cp1
-        old_region = region
-        delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh_t(t, ce, se, w_b, k, dynamic)
-        F = xim2 * ddelta + kk * f
-        # The backlash force is piecewise linear: for the constant model the update is exact
-        # once the region it assumed is the region it lands in. The dynamic model's geometry is
-        # mildly nonlinear: its update is accepted when small (tol) or when the position change
-        # of the last Newton update, bh2 * dmax, is below DQ_LINEAR, where the neglected
-        # quadratic term (curvature of B_d(q) ~ 1e-3 per b0 times DQ_LINEAR^2) is below 1e-11.
-        if region == old_region and (
-            dynamic == 0
-            or bh2 * dmax <= DQ_LINEAR
-            or dmax <= tol * (1.0 + max(abs(a0), abs(a1), abs(a2), abs(a3), abs(a4)))
-        ):
-            s1 = (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], a0, a1, a2, a3, a4)
-            return True, s1, F, region, delta, bd, sp, cp
-    return False, s, F, region, delta, bd, sp, cp
+        code, a, t, mesh, fin = newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol)
+        if code == NEWTON_DONE:
+            s1 = (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], a[0], a[1], a[2], a[3], a[4])
+            return True, s1, fin[0], fin[1], fin[2], fin[3], fin[4], fin[5]
+        if code == NEWTON_BAD:
+            break
+    return False, s, fin[0], fin[1], fin[2], fin[3], fin[4], fin[5]
 
 
 DQ_LINEAR = 1e-4

@@ -10,6 +10,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import gear_env  # noqa: F401
+from gear_env import batch_kernels as BK
 from gear_env import kernels as K
 from gear_env.env import GearSpeedEnv
 from gear_env.env_core import INFO_KEYS
@@ -123,17 +124,29 @@ def test_vector_bad_actions_raise():
         GearSpeedVectorEnv(0)
 
 
+def patch_batch_kernels(monkeypatch, after):
+    """Make both batch kernels (scalar and SIMD lanes) call ``after(X, n_periods, status)`` after
+    integrating, to inject failures."""
+    for mod, name in ((K, "integrate_stats_batch"), (BK, "integrate_stats_lanes")):
+        real = getattr(mod, name)
+
+        def patched(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol,
+                    real=real):  # fmt: skip
+            real(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol)
+            after(X, n_periods, status)
+
+        monkeypatch.setattr(mod, name, patched)
+
+
 def test_vector_divergence_only_hits_the_bad_row(monkeypatch):
     venv = GearSpeedVectorEnv(3, **FAST)
     obs0, _ = venv.reset(seed=0)
-    real = K.integrate_stats_batch
 
-    def patched(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol):
-        real(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol)
+    def fail_row_1(X, n_periods, status):
         status[1] = K.NEWTON_FAILED
         X[1] = np.nan
 
-    monkeypatch.setattr(K, "integrate_stats_batch", patched)
+    patch_batch_kernels(monkeypatch, fail_row_1)
     obs, r, te, tr, info = venv.step(np.zeros((3, 1), np.float32))
     assert te.tolist() == [False, True, False]
     assert info["diverged"].tolist() == [False, True, False]
@@ -190,14 +203,12 @@ def test_sb3_adapter_terminal_observation_and_truncation():
 def test_sb3_adapter_divergence_is_not_truncation(monkeypatch):
     env = SB3VecEnvAdapter(2, seed=0, **FAST)
     env.reset()
-    real = K.integrate_stats_batch
 
-    def patched(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol):
-        real(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol)
+    def diverge_row_0(X, n_periods, status):
         if n_periods == FAST["periods_per_step"]:
             status[0] = K.DIVERGED
 
-    monkeypatch.setattr(K, "integrate_stats_batch", patched)
+    patch_batch_kernels(monkeypatch, diverge_row_0)
     env.step_async(np.zeros((2, 1), np.float32))
     _, _, dones, infos = env.step_wait()
     assert dones.tolist() == [True, False]

@@ -1,0 +1,381 @@
+"""numba kernel that advances a batch of independent gear systems with SIMD across the batch.
+
+:func:`integrate_stats_lanes` does what ``kernels.integrate_stats_batch`` does (every system by
+the same number of mesh periods, each with its own omega ramp and constants) and returns the same
+numbers bit for bit, but it steps all systems together, one Newmark step at a time, with the state
+held in structure-of-arrays form (one row per state component, one column per system). The
+systems are "lanes": the common case of a step (predictor, one Newton iteration, the dynamic
+model's Taylor update, the statistics) is a loop over lanes without calls or early exits, which
+LLVM vectorises (4 lanes per AVX2 instruction). The rare lanes whose first Newton iteration did
+not finish (a contact change inside the step, a step to be split) are then redone one by one with
+the scalar ``kernels.newmark_step_t``, which repeats the same first iteration and goes on; so
+every lane follows exactly the arithmetic of the scalar kernel.
+
+Why it matters: a Newmark step of the dynamic model is ~300 floating-point operations with 2-4
+divisions and square roots, limited by instruction throughput (``benchmarks/kernel_interleave.py``
+shows that two independent trajectories interleaved in one scalar loop run no faster). SIMD lanes
+are the way to more operations per cycle. The vector environment uses this kernel.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import kernels as K
+from .kernels import kernel, kernel_inline
+
+LANES = 16
+"""Most systems stepped together: a block of up to LANES lanes lives in one (N_ROWS, LANES) buffer
+whose row stride is a compile-time constant, so LLVM proves that its rows do not overlap and
+vectorises the loops over lanes (whose trip count is the block's lane count, padded to a multiple
+of PAD)."""
+PAD = 4
+N_K = 20  # length of kernels.step_consts
+# rows of the block buffer: state (q, v, a), Newton guess, their copies from before the step,
+# step constants, then the rest
+R_S = 0
+R_G = R_S + K.NSTATE + K.NDOF
+R_OLD = R_G + K.NDOF
+R_K = R_OLD + K.NSTATE + 2 * K.NDOF
+# step outputs
+O_F, O_REG, O_DELTA, O_BD, O_SP, O_CP, O_H, O_WB, O_DONE, O_SPLIT, O_BAD = range(R_K + N_K, R_K + N_K + 11)
+# accumulators (as in kernels.integrate_stats_tab) and per-lane settings
+(
+    Q_T, Q_N, Q_NSPLIT, Q_SEP, Q_BACK, Q_BACK_IMP, Q_DRIVE_IMP, Q_FSUM, Q_FSQ, Q_TRSQ, Q_RPMAX,
+    Q_FMAX, Q_FMIN, Q_UMAX, Q_UMIN, Q_DMAX, Q_DMIN, Q_BDMAX, Q_BDMIN, Q_SPMAX, Q_SPMIN,
+    Q_FPREV, Q_TRPREV, Q_REGPREV, Q_EL, Q_LIVE, Q_W0, Q_WW, Q_WA,
+) = range(O_BAD + 1, O_BAD + 30)  # fmt: skip
+N_ROWS = Q_WA + 1
+
+
+@kernel_inline
+def _lane_k(B, e):
+    """The step constants (``kernels.step_consts``) of lane e."""
+    r = R_K
+    return (
+        B[r, e], B[r + 1, e], B[r + 2, e], B[r + 3, e], B[r + 4, e], B[r + 5, e], B[r + 6, e], B[r + 7, e],
+        B[r + 8, e], B[r + 9, e], B[r + 10, e], B[r + 11, e], B[r + 12, e], B[r + 13, e], B[r + 14, e],
+        B[r + 15, e], B[r + 16, e], B[r + 17, e], B[r + 18, e], B[r + 19, e],
+    )  # fmt: skip
+
+
+@kernel_inline
+def _lane_s(B, e, r=R_S):
+    """State tuple (q, v, a) of lane e (from rows r, r + 1, ...)."""
+    return (
+        B[r, e], B[r + 1, e], B[r + 2, e], B[r + 3, e], B[r + 4, e], B[r + 5, e], B[r + 6, e], B[r + 7, e],
+        B[r + 8, e], B[r + 9, e], B[r + 10, e], B[r + 11, e], B[r + 12, e], B[r + 13, e], B[r + 14, e],
+    )  # fmt: skip
+
+
+@kernel_inline
+def _lane_g(B, e, r=R_G):
+    """Newton's starting guess of lane e (from rows r, ..., r + 4)."""
+    return (B[r, e], B[r + 1, e], B[r + 2, e], B[r + 3, e], B[r + 4, e])
+
+
+@kernel_inline
+def _first_pass(B, TB, nl, m, jj, dphi, dynamic, tol):
+    """One Newmark step of every lane with a single Newton iteration (vectorised loop).
+
+    Every lane's state and guess are overwritten with the result (the pre-step ones are copied to
+    the R_OLD rows); O_DONE = 1 where the iteration finished the step. ``jj`` = step index + 1,
+    ``m`` = excitation row of TB.
+
+    Stores are unconditional on purpose: ``x = new if ok else x`` becomes a masked store, which
+    is microcoded and slow on AMD Zen.
+    """
+    for e in range(nl):
+        k = _lane_k(B, e)
+        w0 = B[Q_W0, e]
+        ww = B[Q_WW, e]
+        wa = B[Q_WA, e]
+        wb = w0 if ww == 0.0 else math.sqrt(w0 * w0 + ww * jj)
+        hc = K.step_coeffs(2.0 * dphi / (wa + wb), k)
+        s = _lane_s(B, e)
+        g = _lane_g(B, e)
+        ce = TB[m, 0, e]
+        se = TB[m, 1, e]
+        kk = TB[m, 2, e]
+        pv, t, mesh = K.newton_start_t(s, g, ce, se, wb, hc, k, dynamic)
+        code, a, t, mesh, fin = K.newton_iter_t(pv, g, t, mesh, ce, se, kk, wb, hc, k, dynamic, tol, True, False)
+        ok = code == K.NEWTON_DONE and k[17] == 0.0  # steps with friction: redone by the scalar path
+        # the pre-step state and guess, for the scalar redo (written out: a loop here over the
+        # tuple stops the vectorisation)
+        B[R_OLD + 0, e] = s[0]
+        B[R_OLD + 1, e] = s[1]
+        B[R_OLD + 2, e] = s[2]
+        B[R_OLD + 3, e] = s[3]
+        B[R_OLD + 4, e] = s[4]
+        B[R_OLD + 5, e] = s[5]
+        B[R_OLD + 6, e] = s[6]
+        B[R_OLD + 7, e] = s[7]
+        B[R_OLD + 8, e] = s[8]
+        B[R_OLD + 9, e] = s[9]
+        B[R_OLD + 10, e] = s[10]
+        B[R_OLD + 11, e] = s[11]
+        B[R_OLD + 12, e] = s[12]
+        B[R_OLD + 13, e] = s[13]
+        B[R_OLD + 14, e] = s[14]
+        B[R_OLD + 15, e] = g[0]
+        B[R_OLD + 16, e] = g[1]
+        B[R_OLD + 17, e] = g[2]
+        B[R_OLD + 18, e] = g[3]
+        B[R_OLD + 19, e] = g[4]
+        for i in range(K.NSTATE):
+            B[R_S + i, e] = t[i]
+        for i in range(K.NDOF):
+            an = a[i]
+            B[R_S + K.NSTATE + i, e] = an
+            # next guess: linear extrapolation (dynamic model), the acceleration itself (constant)
+            B[R_G + i, e] = an if dynamic == 0 else 2.0 * an - s[K.NSTATE + i]
+        B[O_F, e] = fin[0]
+        B[O_REG, e] = float(fin[1])
+        B[O_DELTA, e] = fin[2]
+        B[O_BD, e] = fin[3]
+        B[O_SP, e] = fin[4]
+        B[O_CP, e] = fin[5]
+        B[O_H, e] = hc[0]
+        B[O_WB, e] = wb
+        B[O_DONE, e] = 1.0 if ok else 0.0
+        B[O_SPLIT, e] = 0.0
+
+
+@kernel_inline
+def _check_pass(B, nl):
+    """Elapsed time and the divergence check of every lane after a step (vectorised loop):
+    O_BAD = 1 where the state is non-finite or |q|_1 + |v|_1 > DIVERGENCE_LIMIT
+    (``kernels._diverged_t``)."""
+    for e in range(nl):
+        B[Q_EL, e] += B[O_H, e]
+        m = abs(B[0, e]) + abs(B[1, e]) + abs(B[2, e]) + abs(B[3, e]) + abs(B[4, e])
+        m += abs(B[5, e]) + abs(B[6, e]) + abs(B[7, e]) + abs(B[8, e]) + abs(B[9, e])
+        B[O_BAD, e] = 0.0 if m <= K.DIVERGENCE_LIMIT else 1.0
+
+
+@kernel_inline
+def _stats_pass(B, nl):
+    """Interval statistics of every lane after a step (vectorised loop), the loop body of
+    ``kernels.integrate_stats_tab``. Lanes are not masked: a lane that stopped was retired with
+    its statistics before, and what this adds to it afterwards is never read.
+
+    No branches and no ``x = y if c else x`` (LLVM turns that into a masked store, microcoded and
+    slow on AMD Zen): region tests multiply by 0/1, and the extremes are stored as
+    ``max(x, y) + 0.0``, which differs from ``max(x, y)`` only by the sign of a zero.
+    """
+    for e in range(nl):
+        h = B[O_H, e]
+        F = B[O_F, e]
+        region = B[O_REG, e]
+        delta = B[O_DELTA, e]
+        bd = B[O_BD, e]
+        sp = B[O_SP, e]
+        reg_prev = B[Q_REGPREV, e]
+        F_prev = B[Q_FPREV, e]
+        q0, q1, q2, q3, q4 = B[0, e], B[1, e], B[2, e], B[3, e], B[4, e]
+        rpp = q0 * q0 + q1 * q1
+        rpg = q2 * q2 + q3 * q3
+        tr = 0.5 * (rpp + rpg)
+        apart = 1.0 if region == 0.0 else 0.0
+        back = 1.0 if region < 0.0 else 0.0
+        B[Q_T, e] += h
+        B[Q_N, e] += 1.0
+        B[Q_NSPLIT, e] += B[O_SPLIT, e]
+        B[Q_SEP, e] += h * apart
+        B[Q_BACK, e] += h * back
+        B[Q_BACK_IMP, e] += back * (1.0 if reg_prev >= 0.0 else 0.0)
+        B[Q_DRIVE_IMP, e] += (1.0 if region > 0.0 else 0.0) * (1.0 if reg_prev == 0.0 else 0.0)
+        B[Q_FSUM, e] += 0.5 * h * (F + F_prev)
+        B[Q_FSQ, e] += 0.5 * h * (F * F + F_prev * F_prev)
+        B[Q_TRSQ, e] += 0.5 * h * (tr + B[Q_TRPREV, e])
+        B[Q_RPMAX, e] = max(B[Q_RPMAX, e], max(rpp, rpg)) + 0.0
+        B[Q_FMAX, e] = max(B[Q_FMAX, e], F) + 0.0
+        B[Q_FMIN, e] = min(B[Q_FMIN, e], F) + 0.0
+        B[Q_UMAX, e] = max(B[Q_UMAX, e], q4) + 0.0
+        B[Q_UMIN, e] = min(B[Q_UMIN, e], q4) + 0.0
+        B[Q_DMAX, e] = max(B[Q_DMAX, e], delta) + 0.0
+        B[Q_DMIN, e] = min(B[Q_DMIN, e], delta) + 0.0
+        B[Q_BDMAX, e] = max(B[Q_BDMAX, e], bd) + 0.0
+        B[Q_BDMIN, e] = min(B[Q_BDMIN, e], bd) + 0.0
+        B[Q_SPMAX, e] = max(B[Q_SPMAX, e], sp) + 0.0
+        B[Q_SPMIN, e] = min(B[Q_SPMIN, e], sp) + 0.0
+        B[Q_FPREV, e] = F
+        B[Q_TRPREV, e] = tr
+        B[Q_REGPREV, e] = region
+        B[Q_WA, e] = B[O_WB, e]
+
+
+@kernel_inline
+def _retire(B, el, e, r, X, A, stats, elapsed, el_time, c, dynamic):
+    """Write lane el's state (from rows r), statistics and elapsed time to system e."""
+    for i in range(K.NSTATE):
+        X[e, i] = B[r + i, el]
+    for i in range(K.NDOF):
+        A[e, i] = B[r + K.NSTATE + i, el]
+    _finish_stats(B, el, stats[e], c, dynamic)
+    elapsed[e] = el_time
+    B[Q_LIVE, el] = 0.0
+
+
+@kernel_inline
+def _load_block(B, TB, nl, e0, X, A, W0, W1, total, n_steps, C, dynamic, status, work):
+    """Fill the block buffer with systems e0 .. e0 + nl - 1 (those beyond the last system are
+    padding: a copy of the last system, never live)."""
+    n = X.shape[0]
+    for el in range(nl):
+        e = min(e0 + el, n - 1)
+        c = C[e]
+        k = K.step_consts(c)
+        for i in range(N_K):
+            B[R_K + i, el] = k[i]
+        tab = K._excitation_table(0.0, n_steps, c)
+        for r in range(n_steps):
+            for i in range(3):
+                TB[r, i, el] = tab[r, i]
+        x = X[e].copy()
+        a = A[e].copy()
+        F0, reg0, _d, _b = K.start_step(x, a, 0.0, W0[e], c, dynamic, work)
+        for i in range(K.NSTATE):
+            B[R_S + i, el] = x[i]
+        for i in range(K.NDOF):
+            B[R_S + K.NSTATE + i, el] = a[i]
+            B[R_G + i, el] = a[i]
+        for r in range(O_F, N_ROWS):
+            B[r, el] = 0.0
+        B[Q_W0, el] = W0[e]
+        B[Q_WW, el] = (W1[e] * W1[e] - W0[e] * W0[e]) / total
+        B[Q_WA, el] = W0[e]
+        B[Q_FPREV, el] = F0
+        B[Q_REGPREV, el] = float(reg0)
+        B[Q_TRPREV, el] = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
+        for i in (Q_RPMAX, Q_FMAX, Q_UMAX, Q_DMAX, Q_BDMAX, Q_SPMAX):
+            B[i, el] = -np.inf
+        for i in (Q_FMIN, Q_UMIN, Q_DMIN, Q_BDMIN, Q_SPMIN):
+            B[i, el] = np.inf
+        B[Q_LIVE, el] = 1.0 if e0 + el < n else 0.0
+        if e0 + el < n:
+            status[e] = K.OK
+
+
+@kernel_inline
+def _integrate(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol):
+    n = X.shape[0]
+    total = n_periods * n_steps
+    dphi = K.TWO_PI / n_steps
+    B = np.empty((N_ROWS, LANES))
+    TB = np.empty((n_steps, 3, LANES))
+    work = np.zeros(K.WORK_SIZE)
+    done = np.full(n, n_periods, np.int64)
+    for e0 in range(0, n, LANES):
+        nl = min(LANES, n - e0)
+        nl = (nl + PAD - 1) // PAD * PAD
+        _load_block(B, TB, nl, e0, X, A, W0, W1, total, n_steps, C, dynamic, status, work)
+        for j in range(total):
+            m = (j + 1) % n_steps
+            _first_pass(B, TB, nl, m, j + 1.0, dphi, dynamic, tol)
+            # lanes whose first Newton iteration did not finish: the scalar step from the start
+            for el in range(nl):
+                if B[Q_LIVE, el] == 0.0 or B[O_DONE, el] != 0.0:
+                    continue
+                e = e0 + el
+                k = _lane_k(B, el)
+                wa = B[Q_WA, el]
+                wb = B[O_WB, el]
+                hc = K.step_coeffs(2.0 * dphi / (wa + wb), k)
+                s = _lane_s(B, el, R_OLD)
+                st, s1, F, region, delta, bd, sp, cp, split = K.newmark_step_t(
+                    s, _lane_g(B, el, R_OLD + K.NSTATE + K.NDOF), dphi * j, dphi, TB[m, 0, el], TB[m, 1, el],
+                    TB[m, 2, el], wa, wb, hc, C[e], k, dynamic, max_iter, tol,
+                )  # fmt: skip
+                if st != K.OK:
+                    status[e] = st
+                    done[e] = j // n_steps
+                    _retire(B, el, e, R_OLD, X, A, stats, elapsed, B[Q_EL, el] + B[O_H, el], C[e], dynamic)
+                    continue
+                ng = K.guess_t(s, s1, split or dynamic == 0)
+                for i in range(K.NSTATE + K.NDOF):
+                    B[R_S + i, el] = s1[i]
+                for i in range(K.NDOF):
+                    B[R_G + i, el] = ng[i]
+                B[O_F, el] = F
+                B[O_REG, el] = float(region)
+                B[O_DELTA, el] = delta
+                B[O_BD, el] = bd
+                B[O_SP, el] = sp
+                B[O_CP, el] = cp
+                B[O_SPLIT, el] = float(split)
+            _check_pass(B, nl)
+            for el in range(nl):
+                if B[O_BAD, el] != 0.0 and B[Q_LIVE, el] != 0.0:
+                    status[e0 + el] = K.DIVERGED
+                    done[e0 + el] = j // n_steps
+                    _retire(B, el, e0 + el, R_S, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
+            _stats_pass(B, nl)
+            if m == 0:
+                p = (j + 1) // n_steps - 1
+                for el in range(nl):
+                    if B[Q_LIVE, el] == 0.0:
+                        continue
+                    e = e0 + el
+                    for i in range(K.NSTATE):
+                        poincare[e, p, i] = B[R_S + i, el]
+                    poincare[e, p, K.PC_DELTA] = B[O_DELTA, el]
+                    poincare[e, p, K.PC_BD] = B[O_BD, el]
+                    poincare[e, p, K.PC_PSI] = K.psi_t(B[O_SP, el], B[O_CP, el], C[e], dynamic)
+                    poincare[e, p, K.PC_FORCE] = B[O_F, el]
+        for el in range(nl):
+            if B[Q_LIVE, el] != 0.0:
+                _retire(B, el, e0 + el, R_S, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
+    return done
+
+
+@kernel_inline
+def _finish_stats(B, e, stats, c, dynamic):
+    """Write lane e's accumulators into its stats vector as ``integrate_stats_tab`` does after a
+    reset."""
+    K._stats_init(stats)
+    stats[K.ST_TIME] += B[Q_T, e]
+    stats[K.ST_STEPS] += B[Q_N, e]
+    stats[K.ST_SPLITS] += B[Q_NSPLIT, e]
+    stats[K.ST_SEP_TIME] += B[Q_SEP, e]
+    stats[K.ST_BACK_TIME] += B[Q_BACK, e]
+    stats[K.ST_BACK_IMPACTS] += B[Q_BACK_IMP, e]
+    stats[K.ST_DRIVE_IMPACTS] += B[Q_DRIVE_IMP, e]
+    stats[K.ST_F_SUM] += B[Q_FSUM, e]
+    stats[K.ST_F_SQ] += B[Q_FSQ, e]
+    stats[K.ST_TR_SQ] += B[Q_TRSQ, e]
+    if B[Q_N, e] > 0.0:
+        stats[K.ST_TR_MAX] = max(stats[K.ST_TR_MAX], math.sqrt(B[Q_RPMAX, e]))
+        stats[K.ST_F_MAX] = max(stats[K.ST_F_MAX], B[Q_FMAX, e])
+        stats[K.ST_F_MIN] = min(stats[K.ST_F_MIN], B[Q_FMIN, e])
+        stats[K.ST_U_MAX] = max(stats[K.ST_U_MAX], B[Q_UMAX, e])
+        stats[K.ST_U_MIN] = min(stats[K.ST_U_MIN], B[Q_UMIN, e])
+        stats[K.ST_D_MAX] = max(stats[K.ST_D_MAX], B[Q_DMAX, e])
+        stats[K.ST_D_MIN] = min(stats[K.ST_D_MIN], B[Q_DMIN, e])
+        stats[K.ST_BD_MAX] = max(stats[K.ST_BD_MAX], B[Q_BDMAX, e])
+        stats[K.ST_BD_MIN] = min(stats[K.ST_BD_MIN], B[Q_BDMIN, e])
+        if dynamic == 0:
+            stats[K.ST_PSI_MAX] = max(stats[K.ST_PSI_MAX], c[K.C_ALPHA0])
+            stats[K.ST_PSI_MIN] = min(stats[K.ST_PSI_MIN], c[K.C_ALPHA0])
+        else:
+            stats[K.ST_PSI_MAX] = max(stats[K.ST_PSI_MAX], math.asin(B[Q_SPMAX, e]))
+            stats[K.ST_PSI_MIN] = min(stats[K.ST_PSI_MIN], math.asin(B[Q_SPMIN, e]))
+
+
+@kernel
+def integrate_stats_lanes(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter,
+                          tol):  # fmt: skip
+    """Advance a batch of independent systems by n_periods each, SIMD across the batch.
+
+    Same arguments and results as ``kernels.integrate_stats_batch`` except that ``dynamic`` is
+    one model code (0 constant, 1 dynamic) for every system. X (n, 10), A (n, 5), W0/W1 (n,)
+    omega at the start and end (linear in time), C (n, N_CONSTS) constants per system, poincare
+    (n, n_periods, N_PC) (rows of periods a failed system did not reach are left as they were),
+    stats (n, N_STATS), status (n,) int64, elapsed (n,) natural time. Every system starts at mesh
+    phase 0. Returns the periods completed per system (n,).
+    """
+    if dynamic == 0:
+        return _integrate(X, A, W0, W1, n_periods, n_steps, C, 0, poincare, stats, status, elapsed, max_iter, tol)
+    return _integrate(X, A, W0, W1, n_periods, n_steps, C, 1, poincare, stats, status, elapsed, max_iter, tol)
