@@ -2,6 +2,9 @@
 
 Run:  taskset -c 0 python benchmarks/bench_env.py [--seconds 3] [--trade]
 
+"physics alone" times the two batch kernels on the same 64 initial states: the SIMD lanes kernel
+the vector env uses and the scalar one (one system after the other) it replaced.
+
 Every number is measured in this one run on one core, as steps per second of this process's CPU
 time (robust against other jobs sharing the machine; compile time excluded: a warm-up runs
 first). Actions are uniform random in [-1, 1] (seeded); episodes auto-reset, so the warm-up of
@@ -79,8 +82,12 @@ def bench_vector(num_envs: int, seconds: float, **cfg) -> float:
     return n * num_envs / dt
 
 
-def bench_kernel(num_envs: int, seconds: float) -> float:
-    """Physics alone: integrate_stats_batch over the default control step, env-steps per second."""
+def bench_kernel(num_envs: int, seconds: float, lanes: bool, ramp: float = 0.0) -> float:
+    """Physics alone over the default control step, env-steps per second: the SIMD lanes kernel
+    (``batch_kernels.integrate_stats_lanes``, what the vector env uses) or the scalar batch kernel
+    (``kernels.integrate_stats_batch``, one system after the other); omega ramps by ``ramp`` per
+    step (alternating up and down) or stays constant."""
+    from gear_env import batch_kernels as BK
     from gear_env import kernels as K
     from gear_env.env_config import GearSpeedConfig
     from gear_env.env_core import GearSpeedCore
@@ -90,17 +97,26 @@ def bench_kernel(num_envs: int, seconds: float) -> float:
     rng = np.random.default_rng(0)
     core.reset_rows(np.arange(num_envs), [rng] * num_envs)
     X, A, C, codes = core.X.copy(), core.A.copy(), core.C, core.codes
-    w = core.omega.copy()
+    w = [core.omega.copy(), core.omega + ramp]
     pc = np.zeros((num_envs, cfg.periods_per_step, K.N_PC))
     st = np.zeros((num_envs, K.N_STATS))
     status = np.zeros(num_envs, np.int64)
     el = np.zeros(num_envs)
+    k = [0]
 
     def step():
-        K.integrate_stats_batch(
-            X, A, w, w, cfg.periods_per_step, cfg.steps_per_period, C, codes, pc, st, status, el, 12, 1e-10
-        )
+        w0, w1 = w[k[0] % 2], w[(k[0] + 1) % 2]
+        k[0] += 1
+        if lanes:
+            BK.integrate_stats_lanes(
+                X, A, w0, w1, cfg.periods_per_step, cfg.steps_per_period, C, core.code, pc, st, status, el, 12, 1e-10
+            )
+        else:
+            K.integrate_stats_batch(
+                X, A, w0, w1, cfg.periods_per_step, cfg.steps_per_period, C, codes, pc, st, status, el, 12, 1e-10
+            )
 
+    step()
     n, dt = _timed(step, seconds)
     return n * num_envs / dt
 
@@ -143,8 +159,13 @@ def main() -> None:
     for n in (1, 8, 64):
         v = bench_vector(n, s)
         print(f"vector env, {n:2d} sub-envs   : {v:9.0f} env-steps/s")
-    kern = bench_kernel(64, s)
-    print(f"physics kernel alone, 64  : {kern:9.0f} env-steps/s   (vector env at 64 reaches {v / kern:.0%} of it)")
+    for ramp, what in ((0.0, "omega held   "), (0.02, "omega ramping")):
+        kern = bench_kernel(64, s, lanes=True, ramp=ramp)
+        scal = bench_kernel(64, s, lanes=False, ramp=ramp)
+        print(
+            f"physics alone, 64, {what}: SIMD lanes {kern:6.0f}, scalar {scal:6.0f} env-steps/s "
+            f"(SIMD / scalar = {kern / scal:.2f}x)"
+        )
     cp = bench_cartpole(s)
     print(f"CartPole-v1 (gym.make)    : {cp:9.0f} steps/s   (GearSpeed single / CartPole = {single / cp:.3f})")
     if args.trade:
