@@ -207,7 +207,39 @@ def _stats_pass(B, nl):
         B[Q_WA, e] = B[O_WB, e]
 
 
-@kernel_inline
+@kernel
+def _redo_lane(B, TB, el, m, j, dphi, c, dynamic, max_iter, tol):
+    """Step j of lane el again from its pre-step state (R_OLD rows) with the scalar kernel
+    (``kernels.newmark_step_t``: the same first Newton iteration, then more, then step splitting)
+    and store the result like :func:`_first_pass`. Returns the step's status. Compiled apart from
+    the vectorised loops (it is rare, and inlining it doubles the compile time)."""
+    k = _lane_k(B, el)
+    wa = B[Q_WA, el]
+    wb = B[O_WB, el]
+    hc = K.step_coeffs(2.0 * dphi / (wa + wb), k)
+    s = _lane_s(B, el, R_OLD)
+    st, s1, F, region, delta, bd, sp, cp, split = K.newmark_step_t(
+        s, _lane_g(B, el, R_OLD + K.NSTATE + K.NDOF), dphi * j, dphi, TB[m, 0, el], TB[m, 1, el], TB[m, 2, el],
+        wa, wb, hc, c, k, dynamic, max_iter, tol,
+    )  # fmt: skip
+    if st != K.OK:
+        return st
+    ng = K.guess_t(s, s1, split or dynamic == 0)
+    for i in range(K.NSTATE + K.NDOF):
+        B[R_S + i, el] = s1[i]
+    for i in range(K.NDOF):
+        B[R_G + i, el] = ng[i]
+    B[O_F, el] = F
+    B[O_REG, el] = float(region)
+    B[O_DELTA, el] = delta
+    B[O_BD, el] = bd
+    B[O_SP, el] = sp
+    B[O_CP, el] = cp
+    B[O_SPLIT, el] = float(split)
+    return K.OK
+
+
+@kernel
 def _retire(B, el, e, r, X, A, stats, elapsed, el_time, c, dynamic):
     """Write lane el's state (from rows r), statistics and elapsed time to system e."""
     for i in range(K.NSTATE):
@@ -219,7 +251,7 @@ def _retire(B, el, e, r, X, A, stats, elapsed, el_time, c, dynamic):
     B[Q_LIVE, el] = 0.0
 
 
-@kernel_inline
+@kernel
 def _load_block(B, TB, nl, e0, X, A, W0, W1, total, n_steps, C, dynamic, status, work):
     """Fill the block buffer with systems e0 .. e0 + nl - 1 (those beyond the last system are
     padding: a copy of the last system, never live)."""
@@ -280,32 +312,11 @@ def _integrate(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, st
                 if B[Q_LIVE, el] == 0.0 or B[O_DONE, el] != 0.0:
                     continue
                 e = e0 + el
-                k = _lane_k(B, el)
-                wa = B[Q_WA, el]
-                wb = B[O_WB, el]
-                hc = K.step_coeffs(2.0 * dphi / (wa + wb), k)
-                s = _lane_s(B, el, R_OLD)
-                st, s1, F, region, delta, bd, sp, cp, split = K.newmark_step_t(
-                    s, _lane_g(B, el, R_OLD + K.NSTATE + K.NDOF), dphi * j, dphi, TB[m, 0, el], TB[m, 1, el],
-                    TB[m, 2, el], wa, wb, hc, C[e], k, dynamic, max_iter, tol,
-                )  # fmt: skip
+                st = _redo_lane(B, TB, el, m, j, dphi, C[e], dynamic, max_iter, tol)
                 if st != K.OK:
                     status[e] = st
                     done[e] = j // n_steps
                     _retire(B, el, e, R_OLD, X, A, stats, elapsed, B[Q_EL, el] + B[O_H, el], C[e], dynamic)
-                    continue
-                ng = K.guess_t(s, s1, split or dynamic == 0)
-                for i in range(K.NSTATE + K.NDOF):
-                    B[R_S + i, el] = s1[i]
-                for i in range(K.NDOF):
-                    B[R_G + i, el] = ng[i]
-                B[O_F, el] = F
-                B[O_REG, el] = float(region)
-                B[O_DELTA, el] = delta
-                B[O_BD, el] = bd
-                B[O_SP, el] = sp
-                B[O_CP, el] = cp
-                B[O_SPLIT, el] = float(split)
             _check_pass(B, nl)
             for el in range(nl):
                 if B[O_BAD, el] != 0.0 and B[Q_LIVE, el] != 0.0:
@@ -331,7 +342,7 @@ def _integrate(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, st
     return done
 
 
-@kernel_inline
+@kernel
 def _finish_stats(B, e, stats, c, dynamic):
     """Write lane e's accumulators into its stats vector as ``integrate_stats_tab`` does after a
     reset."""
@@ -365,6 +376,15 @@ def _finish_stats(B, e, stats, c, dynamic):
 
 
 @kernel
+def _lanes_constant(X, A, W0, W1, n_periods, n_steps, C, poincare, stats, status, elapsed, max_iter, tol):
+    return _integrate(X, A, W0, W1, n_periods, n_steps, C, 0, poincare, stats, status, elapsed, max_iter, tol)
+
+
+@kernel
+def _lanes_dynamic(X, A, W0, W1, n_periods, n_steps, C, poincare, stats, status, elapsed, max_iter, tol):
+    return _integrate(X, A, W0, W1, n_periods, n_steps, C, 1, poincare, stats, status, elapsed, max_iter, tol)
+
+
 def integrate_stats_lanes(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter,
                           tol):  # fmt: skip
     """Advance a batch of independent systems by n_periods each, SIMD across the batch.
@@ -374,8 +394,9 @@ def integrate_stats_lanes(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare
     omega at the start and end (linear in time), C (n, N_CONSTS) constants per system, poincare
     (n, n_periods, N_PC) (rows of periods a failed system did not reach are left as they were),
     stats (n, N_STATS), status (n,) int64, elapsed (n,) natural time. Every system starts at mesh
-    phase 0. Returns the periods completed per system (n,).
+    phase 0. Returns the periods completed per system (n,). One compiled kernel per model (a
+    Python-level choice, so that only the model in use is compiled: each takes ~40 s the first
+    time, then loads from the disk cache).
     """
-    if dynamic == 0:
-        return _integrate(X, A, W0, W1, n_periods, n_steps, C, 0, poincare, stats, status, elapsed, max_iter, tol)
-    return _integrate(X, A, W0, W1, n_periods, n_steps, C, 1, poincare, stats, status, elapsed, max_iter, tol)
+    fn = _lanes_constant if dynamic == 0 else _lanes_dynamic
+    return fn(X, A, W0, W1, n_periods, n_steps, C, poincare, stats, status, elapsed, max_iter, tol)
