@@ -119,7 +119,8 @@ class GearSpeedCore:
         config: validated :class:`GearSpeedConfig`.
         n: number of systems.
         single: advance with ``integrate_stats`` one system at a time (the single env) instead of
-            ``integrate_stats_batch`` (both give identical numbers).
+            the batch kernels (``integrate_stats_lanes`` from LANES_MIN rows up,
+            ``integrate_stats_batch`` below); all give identical numbers.
     """
 
     def __init__(self, config: GearSpeedConfig, n: int, single: bool = False):

@@ -1,6 +1,6 @@
 """numba kernels of the environment's bookkeeping: Poincare window, features, reward, observation.
 
-These run after the physics kernels (``kernels.integrate_stats`` / ``integrate_stats_batch``) and
+These run after the physics kernels (``kernels.integrate_stats``, ``batch_kernels.integrate_stats_lanes``) and
 replace ~100 small NumPy calls per step by one compiled call, so the Python overhead of a step is a
 few microseconds. Plain arrays in, arrays out. The column layout of the info matrix ``I`` follows
 ``INFO_COLUMNS`` (the info keys of the environment, in order); the accumulator matrix ``ACC`` holds

@@ -1,7 +1,8 @@
 """Native vector form of ``GearSpeed-v0`` and a stable-baselines3 ``VecEnv`` adapter.
 
 * :class:`GearSpeedVectorEnv` - a ``gymnasium.vector.VectorEnv`` that advances all sub-envs in one
-  ``kernels.integrate_stats_batch`` call per step (``gym.make_vec("GearSpeed-v0", num_envs=N)``).
+  compiled call per step, SIMD across them (``batch_kernels.integrate_stats_lanes``;
+  ``gym.make_vec("GearSpeed-v0", num_envs=N)``).
   Sub-env ``i`` has its own random generator, seeded with ``seed + i`` by ``reset(seed=seed)``, so
   it reproduces a single :class:`~gear_env.env.GearSpeedEnv` reset with ``seed + i`` exactly.
 * ``SB3VecEnvAdapter`` (in :mod:`gear_env.sb3_adapter`, also importable from here) - presents the
