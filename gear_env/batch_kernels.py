@@ -7,7 +7,8 @@ held in structure-of-arrays form (one row per state component, one column per sy
 systems are "lanes": the common case of a step (predictor, one Newton iteration, the dynamic
 model's Taylor update, the statistics) is a loop over lanes without calls or early exits, which
 LLVM vectorises (4 lanes per AVX2 instruction). The rare lanes whose first Newton iteration did
-not finish (a contact change inside the step, a step to be split) are then redone one by one with
+not finish (a contact change inside the step, a long step at low omega, a step to be split, the
+friction extension) are then redone one by one with
 the scalar ``kernels.newmark_step_t``, which repeats the same first iteration and goes on; so
 every lane follows exactly the arithmetic of the scalar kernel.
 

@@ -79,3 +79,9 @@ def test_lanes_kernel_handles_odd_step_counts_and_one_row():
     _compare(1, "dynamic", W0, W0 + 0.02, periods=3, n_steps=17)
     W0 = np.linspace(0.5, 2.5, 5)
     _compare(5, "constant", W0, W0, periods=3, n_steps=33)
+
+
+def test_lane_layout_matches_the_scalar_kernel():
+    # the lanes kernel copies the scalar kernel's step constants row by row: same length
+    assert len(K.step_consts(GearParams().consts)) == BK.N_K
+    assert BK.N_ROWS > BK.Q_WA and BK.LANES % BK.PAD == 0
