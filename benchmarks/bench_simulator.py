@@ -81,6 +81,20 @@ def throughput(model: str, omega: float, periods: int, n_steps: int, repeats: in
     return periods / best_w, periods / best_c
 
 
+def throughput_batch(model: str, omegas, periods: int, n_steps: int, repeats: int = 5) -> float:
+    """Mesh periods per second (all systems together, CPU time) of ``simulate_batch``: one system
+    per omega stepped together with SIMD; best of ``repeats``."""
+    from gear_env import simulate_batch
+
+    simulate_batch(omegas, model=model, periods=2, transient=0, steps_per_period=n_steps)  # compile/load
+    best = np.inf
+    for _ in range(repeats):
+        c = time.process_time()
+        simulate_batch(omegas, model=model, periods=periods, transient=0, steps_per_period=n_steps)
+        best = min(best, time.process_time() - c)
+    return len(omegas) * periods / best
+
+
 def _timeit(fn, min_time: float = 0.3) -> float:
     """Best-of CPU time of fn() [s] (process time: robust to other jobs on the machine)."""
     best = np.inf
@@ -278,6 +292,13 @@ def main(argv: list[str] | None = None) -> int:
             cells = "  ".join(f"omega={w}: {r:9,.0f}" for w, r in zip(omegas, rr, strict=True))
             ns_step = 1e9 / (np.mean(rr) * n)
             print(f"{model:8s} {clock} {cells}  mesh periods/s (mean {np.mean(rr):,.0f}; {ns_step:.0f} ns/step)")
+        batch_w = np.linspace(0.45, 2.8, 16)
+        rb = throughput_batch(model, batch_w, periods // 10, n)
+        mean_cpu = np.mean([r[1] for r in rates])
+        print(
+            f"{model:8s} CPU  simulate_batch, 16 omegas in 0.45-2.8 stepped together (SIMD): {rb:9,.0f} mesh periods/s "
+            f"({rb / mean_cpu:.2f}x one trajectory after the other)"
+        )
 
     print("\n== speed-up over solve_ivp (DOP853) at equal accuracy, same start state and periods")
     work = [("dynamic", 1.2), ("dynamic", 2.8), ("constant", 1.2), ("constant", 2.8)]

@@ -11,6 +11,7 @@ from .simulator import (
     default_initial_state,
     default_steps_per_period,
     simulate,
+    simulate_batch,
 )
 
 __version__ = "0.1.0"
@@ -25,6 +26,7 @@ __all__ = [
     "default_initial_state",
     "default_steps_per_period",
     "simulate",
+    "simulate_batch",
     "__version__",
 ]
 

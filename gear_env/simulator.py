@@ -479,3 +479,77 @@ def simulate(
     traj = sim.record(periods)
     traj.meta.update({"transient": tr})
     return traj
+
+
+def simulate_batch(
+    omegas: Any,
+    model: str = "dynamic",
+    periods: int = 200,
+    transient: int = 300,
+    steps_per_period: int | None = None,
+    params: GearParams | None = None,
+) -> list[IntervalStats]:
+    """Simulate independent gear pairs at several fixed meshing frequencies in one SIMD call.
+
+    Each omega starts from the A10 initial state, runs ``transient`` mesh periods and then
+    ``periods`` recorded ones, exactly as ``GearSimulator(params, model, N, omega)`` followed by
+    ``advance(transient)`` and ``advance(periods)`` would, bit for bit, but the systems are
+    stepped together (``batch_kernels.integrate_stats_lanes``, 4 per AVX2 instruction): about
+    2x the throughput of one trajectory after the other. For parameter studies and
+    fresh-start bifurcation diagrams; a continuation sweep (each point starting from the last,
+    :func:`gear_env.analysis.sweep`) is sequential by nature.
+
+    Args:
+        omegas: meshing frequencies Omega/omega_n (each finite and > 0); at least one.
+        model: ``"constant"`` or ``"dynamic"`` backlash.
+        periods: recorded mesh periods (>= 1).
+        transient: mesh periods discarded first (>= 0).
+        steps_per_period: Newmark steps per mesh period for every omega; None (default) for
+            :func:`default_steps_per_period` of the smallest omega (the most demanding one).
+        params: physical parameters (SI), shared by all; default Table 1 with kappa = 0.2.
+
+    Returns:
+        One :class:`IntervalStats` of the recorded periods per omega, in order.
+
+    Raises:
+        ValueError: on invalid arguments (the message names the argument).
+        SimulationDivergedError: if any system blows up (the first such omega is named).
+    """
+    from . import batch_kernels as BK
+
+    ws = np.atleast_1d(np.asarray(omegas, dtype=object))
+    if ws.ndim != 1 or ws.size == 0:
+        raise ValueError(f"omegas must be a non-empty 1-D sequence of frequencies, got shape {ws.shape}")
+    w = np.array([check_omega(v, f"omegas[{i}]") for i, v in enumerate(ws)])
+    n_rec = check_count(periods, "periods")
+    n_tr = check_count(transient, "transient", 0)
+    p = params if params is not None else GearParams()
+    if not isinstance(p, GearParams):
+        raise ValueError(f"params must be a GearParams, got {type(p).__name__}")
+    code = model_code(model)
+    nsp = resolve_steps(steps_per_period, float(w.min()))
+    n = w.size
+    C = np.ascontiguousarray(np.broadcast_to(p.consts, (n, p.consts.size)))
+    X = np.ascontiguousarray(np.broadcast_to(default_initial_state(p, model), (n, K.NSTATE)))
+    A = np.zeros((n, K.NDOF))
+    out = []
+    for count, keep in ((n_tr, False), (n_rec, True)):
+        if count == 0:
+            continue
+        pc = np.zeros((n, count, K.N_PC))
+        st = np.zeros((n, K.N_STATS))
+        status = np.zeros(n, np.int64)
+        el = np.zeros(n)
+        done = BK.integrate_stats_lanes(
+            X, A, w, w, count, nsp, C, code, pc, st, status, el, NEWTON_MAX_ITER, NEWTON_TOL
+        )
+        bad = np.flatnonzero(status != K.OK)
+        if bad.size:
+            i = int(bad[0])
+            before = 0 if not keep else n_tr
+            raise SimulationDivergedError(
+                before + int(done[i]), _STATUS_TEXT.get(int(status[i]), f"status {status[i]}"), float(w[i])
+            )
+        if keep:
+            out = [IntervalStats(float(w[i]), float(w[i]), count, float(el[i]), pc[i], st[i]) for i in range(n)]
+    return out

@@ -85,3 +85,49 @@ def test_lane_layout_matches_the_scalar_kernel():
     # the lanes kernel copies the scalar kernel's step constants row by row: same length
     assert len(K.step_consts(GearParams().consts)) == BK.N_K
     assert BK.N_ROWS > BK.Q_WA and BK.LANES % BK.PAD == 0
+
+
+@pytest.mark.parametrize("model", ["constant", "dynamic"])
+def test_simulate_batch_equals_one_simulator_per_omega(model):
+    from gear_env import GearSimulator, simulate_batch
+
+    omegas = [0.4, 1.2, 1.5, 2.8, 0.9]
+    got = simulate_batch(omegas, model=model, periods=8, transient=12, steps_per_period=64)
+    assert [g.omega_start for g in got] == omegas
+    for w, g in zip(omegas, got):
+        sim = GearSimulator(model=model, steps_per_period=64, omega=w)
+        sim.advance(12)
+        ref = sim.advance(8)
+        np.testing.assert_array_equal(g.poincare, ref.poincare)
+        np.testing.assert_array_equal(g.stats, ref.stats)
+        assert g.duration == ref.duration
+        assert g.amplitude("U") == ref.amplitude("U")
+
+
+def test_simulate_batch_rejects_bad_input_and_reports_divergence(monkeypatch):
+    from gear_env import SimulationDivergedError, simulate_batch
+
+    with pytest.raises(ValueError, match=r"omegas\[1\]"):
+        simulate_batch([1.0, float("nan")])
+    with pytest.raises(ValueError, match="omegas"):
+        simulate_batch([])
+    with pytest.raises(ValueError, match="periods"):
+        simulate_batch([1.0], periods=0)
+    with pytest.raises(ValueError, match="model"):
+        simulate_batch([1.0], model="rigid")
+    # the default step count follows the smallest omega
+    assert simulate_batch([0.1, 2.0], periods=1, transient=0)[1].stats[K.ST_STEPS] > 192
+    # a blow-up of the second system in its third recorded period (injected): the exception
+    # names its omega and the period counted from the start, transient included
+    real = BK.integrate_stats_lanes
+
+    def failing(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol):
+        done = real(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol)
+        if n_periods == 5:
+            status[1] = K.DIVERGED
+            done[1] = 2
+        return done
+
+    monkeypatch.setattr(BK, "integrate_stats_lanes", failing)
+    with pytest.raises(SimulationDivergedError, match=r"period 6 at omega=1.2:.*exceeded"):
+        simulate_batch([0.8, 1.2], periods=5, transient=4)
