@@ -28,9 +28,9 @@ from .params import C_FS, GearParams, model_code
 from .simulator import NEWTON_MAX_ITER, NEWTON_TOL
 
 MAX_PERIOD = EK.MAX_PERIOD
+"""Longest periodic orbit (in mesh periods) recognised by the periodicity defect."""
 LANES_MIN = 2
 """Batches of at least this many rows are advanced by ``batch_kernels.integrate_stats_lanes``."""
-"""Longest periodic orbit (in mesh periods) recognised by the periodicity defect."""
 
 SENSOR_NAMES = (
     "omega",

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from . import batch_kernels as BK
 from . import kernels as K
 from .errors import SimulationDivergedError
 from .params import C_E1, C_PHI_E, GearParams, model_code
@@ -105,6 +106,14 @@ def default_initial_state(params: GearParams, model: str = "dynamic") -> np.ndar
     out = np.zeros(K.NSTATE)
     K.static_equilibrium(params.consts, model_code(model), 0.0, out)
     return out
+
+
+def _check_params(params: Any) -> GearParams:
+    """``params`` if it is a GearParams, the default (Table 1, kappa = 0.2) if None."""
+    p = params if params is not None else GearParams()
+    if not isinstance(p, GearParams):
+        raise ValueError(f"params must be a GearParams, got {type(p).__name__}")
+    return p
 
 
 def _check_state(state: Any) -> np.ndarray:
@@ -229,9 +238,7 @@ class GearSimulator:
         omega: float = 1.0,
         initial_state: Any = None,
     ):
-        self.params = params if params is not None else GearParams()
-        if not isinstance(self.params, GearParams):
-            raise ValueError(f"params must be a GearParams, got {type(self.params).__name__}")
+        self.params = _check_params(params)
         self.model = model
         self.model_code = model_code(model)
         self.auto_steps = steps_per_period is None
@@ -515,27 +522,22 @@ def simulate_batch(
         ValueError: on invalid arguments (the message names the argument).
         SimulationDivergedError: if any system blows up (the first such omega is named).
     """
-    from . import batch_kernels as BK
-
     ws = np.atleast_1d(np.asarray(omegas, dtype=object))
     if ws.ndim != 1 or ws.size == 0:
         raise ValueError(f"omegas must be a non-empty 1-D sequence of frequencies, got shape {ws.shape}")
     w = np.array([check_omega(v, f"omegas[{i}]") for i, v in enumerate(ws)])
     n_rec = check_count(periods, "periods")
     n_tr = check_count(transient, "transient", 0)
-    p = params if params is not None else GearParams()
-    if not isinstance(p, GearParams):
-        raise ValueError(f"params must be a GearParams, got {type(p).__name__}")
+    p = _check_params(params)
     code = model_code(model)
     nsp = resolve_steps(steps_per_period, float(w.min()))
     n = w.size
     C = np.ascontiguousarray(np.broadcast_to(p.consts, (n, p.consts.size)))
     X = np.ascontiguousarray(np.broadcast_to(default_initial_state(p, model), (n, K.NSTATE)))
     A = np.zeros((n, K.NDOF))
-    out = []
-    for count, keep in ((n_tr, False), (n_rec, True)):
-        if count == 0:
-            continue
+
+    def run(count: int, periods_before: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Advance every system by ``count`` periods; (poincare, stats, elapsed) or raise."""
         pc = np.zeros((n, count, K.N_PC))
         st = np.zeros((n, K.N_STATS))
         status = np.zeros(n, np.int64)
@@ -546,10 +548,11 @@ def simulate_batch(
         bad = np.flatnonzero(status != K.OK)
         if bad.size:
             i = int(bad[0])
-            before = 0 if not keep else n_tr
-            raise SimulationDivergedError(
-                before + int(done[i]), _STATUS_TEXT.get(int(status[i]), f"status {status[i]}"), float(w[i])
-            )
-        if keep:
-            out = [IntervalStats(float(w[i]), float(w[i]), count, float(el[i]), pc[i], st[i]) for i in range(n)]
-    return out
+            why = _STATUS_TEXT.get(int(status[i]), f"status {status[i]}")
+            raise SimulationDivergedError(periods_before + int(done[i]), why, float(w[i]))
+        return pc, st, el
+
+    if n_tr > 0:
+        run(n_tr, 0)
+    pc, st, el = run(n_rec, n_tr)
+    return [IntervalStats(float(w[i]), float(w[i]), n_rec, float(el[i]), pc[i], st[i]) for i in range(n)]
