@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -114,6 +115,27 @@ def _check_params(params: Any) -> GearParams:
     if not isinstance(p, GearParams):
         raise ValueError(f"params must be a GearParams, got {type(p).__name__}")
     return p
+
+
+def _check_params_rows(params: Any, n_omegas: int) -> list[GearParams]:
+    """simulate_batch's ``params``: [one GearParams] (None or a GearParams, shared) or one per
+    system (a list or tuple of GearParams whose length is ``n_omegas``, or any length if there is
+    one omega)."""
+    if params is None or isinstance(params, GearParams):
+        return [_check_params(params)]
+    if not isinstance(params, (list, tuple)):
+        raise ValueError(f"params must be a GearParams or a list of GearParams, got {type(params).__name__}")
+    if len(params) == 0:
+        raise ValueError("params must not be an empty list")
+    if n_omegas != 1 and len(params) != n_omegas:
+        raise ValueError(
+            f"params has {len(params)} entries but there are {n_omegas} omegas: give one GearParams per omega, "
+            "one shared GearParams, or a single omega"
+        )
+    for i, q in enumerate(params):
+        if not isinstance(q, GearParams):
+            raise ValueError(f"params[{i}] must be a GearParams, got {type(q).__name__}")
+    return list(params)
 
 
 def _check_state(state: Any) -> np.ndarray:
@@ -494,7 +516,7 @@ def simulate_batch(
     periods: int = 200,
     transient: int = 300,
     steps_per_period: int | None = None,
-    params: GearParams | None = None,
+    params: GearParams | Sequence[GearParams] | None = None,
 ) -> list[IntervalStats]:
     """Simulate independent gear pairs at several fixed meshing frequencies in one SIMD call.
 
@@ -504,7 +526,9 @@ def simulate_batch(
     stepped together (``batch_kernels.integrate_stats_lanes``, 4 per AVX2 instruction): about
     2x the throughput of one trajectory after the other. For parameter studies and
     fresh-start bifurcation diagrams; a continuation sweep (each point starting from the last,
-    :func:`gear_env.analysis.sweep`) is sequential by nature.
+    :func:`gear_env.analysis.sweep`) is sequential by nature. ``params`` may give one parameter
+    set per system (a study over kappa, backlash, damping...); a single omega is then used for
+    all of them.
 
     Args:
         omegas: meshing frequencies Omega/omega_n (each finite and > 0); at least one.
@@ -513,10 +537,12 @@ def simulate_batch(
         transient: mesh periods discarded first (>= 0).
         steps_per_period: Newmark steps per mesh period for every omega; None (default) for
             :func:`default_steps_per_period` of the smallest omega (the most demanding one).
-        params: physical parameters (SI), shared by all; default Table 1 with kappa = 0.2.
+        params: physical parameters (SI): one GearParams shared by all systems (default Table 1
+            with kappa = 0.2), or a sequence of them, one per system; its length must equal the
+            number of omegas, or omegas may be a single value.
 
     Returns:
-        One :class:`IntervalStats` of the recorded periods per omega, in order.
+        One :class:`IntervalStats` of the recorded periods per system, in order.
 
     Raises:
         ValueError: on invalid arguments (the message names the argument).
@@ -528,12 +554,18 @@ def simulate_batch(
     w = np.array([check_omega(v, f"omegas[{i}]") for i, v in enumerate(ws)])
     n_rec = check_count(periods, "periods")
     n_tr = check_count(transient, "transient", 0)
-    p = _check_params(params)
     code = model_code(model)
+    ps = _check_params_rows(params, w.size)
+    if len(ps) > 1 and w.size == 1:
+        w = np.full(len(ps), w[0])
     nsp = resolve_steps(steps_per_period, float(w.min()))
     n = w.size
-    C = np.ascontiguousarray(np.broadcast_to(p.consts, (n, p.consts.size)))
-    X = np.ascontiguousarray(np.broadcast_to(default_initial_state(p, model), (n, K.NSTATE)))
+    if len(ps) == 1:
+        C = np.ascontiguousarray(np.broadcast_to(ps[0].consts, (n, ps[0].consts.size)))
+        X = np.ascontiguousarray(np.broadcast_to(default_initial_state(ps[0], model), (n, K.NSTATE)))
+    else:
+        C = np.ascontiguousarray(np.stack([q.consts for q in ps]))
+        X = np.ascontiguousarray(np.stack([default_initial_state(q, model) for q in ps]))
     A = np.zeros((n, K.NDOF))
 
     def run(count: int, periods_before: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -549,7 +581,7 @@ def simulate_batch(
         if bad.size:
             i = int(bad[0])
             why = _STATUS_TEXT.get(int(status[i]), f"status {status[i]}")
-            raise SimulationDivergedError(periods_before + int(done[i]), why, float(w[i]))
+            raise SimulationDivergedError(periods_before + int(done[i]), f"{why} (system {i} of {n})", float(w[i]))
         return pc, st, el
 
     if n_tr > 0:
