@@ -400,4 +400,5 @@ def integrate_stats_lanes(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare
     time, then loads from the disk cache).
     """
     fn = _lanes_constant if dynamic == 0 else _lanes_dynamic
+    C = K.readonly(C)  # one compiled signature whoever calls (see kernels.readonly)
     return fn(X, A, W0, W1, n_periods, n_steps, C, poincare, stats, status, elapsed, max_iter, tol)

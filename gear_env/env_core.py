@@ -188,7 +188,7 @@ class GearSpeedCore:
             x = self.X[r].copy()
             a = self.A[r].copy()
             status, _, el = K.integrate_stats(
-                x, a, 0.0, float(w0[0]), float(w1[0]), periods, cfg.steps_per_period, self.C[r],
+                x, a, 0.0, float(w0[0]), float(w1[0]), periods, cfg.steps_per_period, K.readonly(self.C[r]),
                 self.code, pc[0], st[0], NEWTON_MAX_ITER, NEWTON_TOL, True,
             )  # fmt: skip
             good = status == K.OK and math.isfinite(float(st[0].sum()))
@@ -211,7 +211,7 @@ class GearSpeedCore:
             )  # fmt: skip
         else:
             K.integrate_stats_batch(
-                X, A, W0, W1, periods, cfg.steps_per_period, self.C[rows], self.codes[rows], pc, st, status,
+                X, A, W0, W1, periods, cfg.steps_per_period, K.readonly(self.C[rows]), self.codes[rows], pc, st, status,
                 elapsed, NEWTON_MAX_ITER, NEWTON_TOL,
             )  # fmt: skip
         # the kernel flags non-finite or exploding states; a non-finite statistic would mean the same
@@ -310,7 +310,7 @@ class GearSpeedCore:
                 self.C[r] = cfg.params.consts
             self.fs[r] = self.C[r, C_FS]
             x0 = np.zeros(K.NSTATE)
-            K.static_equilibrium(self.C[r], self.code, 0.0, x0)
+            K.static_equilibrium(K.readonly(self.C[r]), self.code, 0.0, x0)
             self.X[r] = x0
             self.A[r] = 0.0
             self.tr_ref[r] = math.sqrt(max(0.5 * float(np.sum(x0[:4] ** 2)), 1e-300))

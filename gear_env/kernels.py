@@ -122,6 +122,37 @@ N_PC = 14
 DIVERGENCE_LIMIT = 1e6  # |state| beyond this (b0 units) counts as divergence
 
 
+def readonly(a: np.ndarray) -> np.ndarray:
+    """``a`` itself if it is read-only, else a read-only view of it (Python helper, not compiled).
+
+    Kernels take their constants (``GearParams.consts``, one row per system for the batch
+    kernels) as read-only arrays everywhere: numba compiles a separate copy of a kernel for a
+    writable array argument, and a copy of the Newmark loop costs 25-50 s of first-call compile.
+    """
+    if not a.flags.writeable:
+        return a
+    v = a.view()
+    v.flags.writeable = False
+    return v
+
+
+@njit(cache=True)
+def runtime_int(v):
+    """``v`` typed as a plain int64 inside a kernel (not a literal; see :func:`runtime_true`)."""
+    return np.int64(v)
+
+
+@njit(cache=True)
+def runtime_true():
+    """True typed as a plain boolean inside a kernel.
+
+    A kernel that passes a literal (``1``, ``True``) to another kernel makes numba compile a
+    copy of the callee specialised to that literal value; passing these instead reuses the
+    copy that calls from Python compile.
+    """
+    return np.int64(0) == np.int64(0)
+
+
 @kernel_inline
 def backlash(delta, bd):
     """Dead-zone function f(Delta; B_d) (eq. 9) and its region (+1 drive, 0 apart, -1 back)."""
@@ -910,6 +941,7 @@ def integrate_stats_batch(
     not OK is left in an unspecified state; the caller resets it.
     """
     n = X.shape[0]
+    reset = runtime_true()  # not the literal True: see runtime_true
     for j in range(n):
         st, done, s = integrate_stats(
             X[j],
@@ -925,7 +957,7 @@ def integrate_stats_batch(
             stats[j],
             max_iter,
             tol,
-            True,
+            reset,
         )
         status[j] = st
         elapsed[j] = s

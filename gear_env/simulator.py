@@ -266,7 +266,7 @@ class GearSimulator:
         self.auto_steps = steps_per_period is None
         self.steps_per_period = resolve_steps(steps_per_period, check_omega(omega))
         """Steps per mesh period of the last interval (fixed unless ``auto_steps``)."""
-        self._consts = np.ascontiguousarray(self.params.consts)
+        self._consts = K.readonly(np.ascontiguousarray(self.params.consts))
         self.reset(initial_state=initial_state, omega=omega)
 
     def _steps(self, w0: float, w1: float) -> int:

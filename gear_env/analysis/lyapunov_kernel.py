@@ -41,11 +41,18 @@ def lyapunov_pair(x, omega, periods, n_steps, c, dynamic, d0, u, skip, pc, st_al
     sum_log = 0.0
     t_count = 0.0
     t_all = 0.0
+    # runtime-typed 1 and True: literal arguments would make numba compile a second, literal-
+    # specialised copy of integrate_stats (~25 s of first-call compile) instead of reusing the
+    # one GearSimulator already compiled (tests/test_compile_signatures.py)
+    one = K.runtime_int(1)
+    reset = K.runtime_true()
     for p in range(periods):
         s0, _, el = K.integrate_stats(
-            x, a0, 0.0, omega, omega, 1, n_steps, c, dynamic, pc[p : p + 1], st_all[p], max_iter, tol, True
+            x, a0, 0.0, omega, omega, one, n_steps, c, dynamic, pc[p : p + 1], st_all[p], max_iter, tol, reset
         )
-        s1, _, _ = K.integrate_stats(xc, a1, 0.0, omega, omega, 1, n_steps, c, dynamic, pc1, st1, max_iter, tol, True)
+        s1, _, _ = K.integrate_stats(
+            xc, a1, 0.0, omega, omega, one, n_steps, c, dynamic, pc1, st1, max_iter, tol, reset
+        )
         if s0 != K.OK:
             return s0, p, sum_log, t_count, t_all
         if s1 != K.OK:
