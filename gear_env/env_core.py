@@ -211,7 +211,7 @@ class GearSpeedCore:
             )  # fmt: skip
         else:
             K.integrate_stats_batch(
-                X, A, W0, W1, periods, cfg.steps_per_period, K.readonly(self.C[rows]), self.codes[rows], pc, st, status,
+                X, A, W0, W1, periods, cfg.steps_per_period, self.C[rows], self.codes[rows], pc, st, status,
                 elapsed, NEWTON_MAX_ITER, NEWTON_TOL,
             )  # fmt: skip
         # the kernel flags non-finite or exploding states; a non-finite statistic would mean the same

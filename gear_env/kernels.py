@@ -596,7 +596,8 @@ def newmark_step_t(s, g, phi_a, dphi, ce, se, kk, w_a, w_b, hc, c, k, dynamic, m
     ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol)
     if ok:
         return OK, s1, F, region, delta, bd, sp, cp, 0
-    return split_step_t(s, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol)
+    # runtime_int: the SIMD kernels pass the model as a literal; the rare fallback is compiled once
+    return split_step_t(s, phi_a, dphi, w_a, w_b, c, k, runtime_int(dynamic), max_iter, tol)
 
 
 @kernel_inline
@@ -929,8 +930,20 @@ def integrate_stats_tab(
     return status, done, el
 
 
+def integrate_stats_batch(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter,
+                          tol):  # fmt: skip
+    """Advance a batch of independent systems by n_periods each (one call for a vector env).
+
+    Python entry of :func:`_integrate_stats_batch` (same arguments): passes C read-only, so that
+    every caller shares one compiled copy (see :func:`readonly`).
+    """
+    _integrate_stats_batch(
+        X, A, W0, W1, n_periods, n_steps, readonly(C), dynamic, poincare, stats, status, elapsed, max_iter, tol
+    )
+
+
 @kernel
-def integrate_stats_batch(
+def _integrate_stats_batch(
     X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol
 ):
     """Advance a batch of independent systems by n_periods each (one call for a vector env).
