@@ -539,7 +539,8 @@ def simulate_batch(
             :func:`default_steps_per_period` of the smallest omega (the most demanding one).
         params: physical parameters (SI): one GearParams shared by all systems (default Table 1
             with kappa = 0.2), or a sequence of them, one per system; its length must equal the
-            number of omegas, or omegas may be a single value.
+            number of omegas, or omegas may be a single value. Each system's results are in its
+            own parameter set's units (b0 = its half backlash unless ``b0`` is set).
 
     Returns:
         One :class:`IntervalStats` of the recorded periods per system, in order.
