@@ -135,6 +135,7 @@ class GearSpeedCore:
         self.X = np.zeros((n, K.NSTATE))
         self.A = np.zeros((n, K.NDOF))
         self.C = np.tile(np.asarray(cfg.params.consts, float), (n, 1))
+        self._C_ro = K.readonly(self.C)  # rows as the kernels take them (one compiled signature)
         self.codes = np.full(n, self.code, np.int64)
         self.omega_n = np.full(n, cfg.params.omega_n)
         self.fs = self.C[:, C_FS].copy()
@@ -188,7 +189,7 @@ class GearSpeedCore:
             x = self.X[r].copy()
             a = self.A[r].copy()
             status, _, el = K.integrate_stats(
-                x, a, 0.0, float(w0[0]), float(w1[0]), periods, cfg.steps_per_period, K.readonly(self.C[r]),
+                x, a, 0.0, float(w0[0]), float(w1[0]), periods, cfg.steps_per_period, self._C_ro[r],
                 self.code, pc[0], st[0], NEWTON_MAX_ITER, NEWTON_TOL, True,
             )  # fmt: skip
             good = status == K.OK and math.isfinite(float(st[0].sum()))
@@ -310,7 +311,7 @@ class GearSpeedCore:
                 self.C[r] = cfg.params.consts
             self.fs[r] = self.C[r, C_FS]
             x0 = np.zeros(K.NSTATE)
-            K.static_equilibrium(K.readonly(self.C[r]), self.code, 0.0, x0)
+            K.static_equilibrium(self._C_ro[r], self.code, 0.0, x0)
             self.X[r] = x0
             self.A[r] = 0.0
             self.tr_ref[r] = math.sqrt(max(0.5 * float(np.sum(x0[:4] ** 2)), 1e-300))

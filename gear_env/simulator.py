@@ -561,12 +561,10 @@ def simulate_batch(
         w = np.full(len(ps), w[0])
     nsp = resolve_steps(steps_per_period, float(w.min()))
     n = w.size
-    if len(ps) == 1:
-        C = np.ascontiguousarray(np.broadcast_to(ps[0].consts, (n, ps[0].consts.size)))
-        X = np.ascontiguousarray(np.broadcast_to(default_initial_state(ps[0], model), (n, K.NSTATE)))
-    else:
-        C = np.ascontiguousarray(np.stack([q.consts for q in ps]))
-        X = np.ascontiguousarray(np.stack([default_initial_state(q, model) for q in ps]))
+    per_row = len(ps) == n  # else one shared parameter set
+    C = np.stack([q.consts for q in (ps if per_row else ps * n)])
+    x0 = [default_initial_state(q, model) for q in ps]
+    X = np.stack(x0 if per_row else x0 * n)
     A = np.zeros((n, K.NDOF))
 
     def run(count: int, periods_before: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -25,8 +25,8 @@ GROUPS: dict[str, str] = {
     "simd-dynamic": "SIMD batch kernel, dynamic backlash (simulate_batch, vector env of >= 2 sub-envs)",
     "simd-constant": "SIMD batch kernel, constant backlash",
 }
-"""Groups of kernels compiled by one worker each, slowest first (no compiled code is shared
-between groups, so running them at once duplicates nothing substantial)."""
+"""Groups of kernels compiled by one worker each, slowest first. They share little compiled
+code (the split-step fallback), so running them at once duplicates little work."""
 
 
 def _exercise(group: str) -> None:
