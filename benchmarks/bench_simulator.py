@@ -10,7 +10,9 @@ Prints:
    the loosest DOP853 tolerance whose error is no larger is searched (``rtol`` in half decades, both
    straight through the contact kinks and with event location), and both are timed back to back
    (median of 3 paired ratios, robust to the VM's speed drift);
-4. with ``--work-precision``: errors and times of Newmark at N = 48 ... 384 and DOP853 at
+4. the same work at the tests' accuracy bound (1e-3 b0): the smallest N (48 ... 256) and the
+   loosest DOP853 tolerance that reach it, and their paired ratio;
+5. with ``--work-precision``: errors and times of Newmark at N = 48 ... 384 and DOP853 at
    rtol = 1e-1 ... 1e-7, and the paired ratio of the smallest N and the loosest rtol that reach an error
    of 1e-3 (the accuracy the tests require) and 1e-4.
 
@@ -175,6 +177,50 @@ def ratio_vs_solve_ivp(model: str, omega: float, periods: int, n_steps: int) -> 
     return res
 
 
+def ratio_at_bound(model: str, omega: float, periods: int, eps: float = 1e-3) -> dict | None:
+    """Both integrators at one error bound on the same work: the smallest Newmark N (48 ... 256)
+    and the loosest DOP853 rtol (events and plain, half decades from 1e-1) whose Poincare error
+    is <= ``eps`` b0, and their paired ratio. None if no N reaches it."""
+    from gear_env import GearParams, GearSimulator
+    from gear_env.reference import reference_poincare
+
+    p = GearParams()
+    sim = GearSimulator(p, model, 512, omega)
+    sim.advance(300)
+    start = sim.state
+    fine = reference_poincare(omega, model, p, 0, periods, start, rtol=1e-12, atol=1e-13).states
+    nm = None
+    for n in (48, 64, 96, 128, 192, 256):
+
+        def run_nm(n=n):
+            return GearSimulator(p, model, n, omega, start).advance(periods)
+
+        err = float(np.max(np.abs(run_nm().poincare[:, :10] - fine)))
+        if err <= eps:
+            nm = (n, err, run_nm)
+            break
+    if nm is None:
+        return None
+    out: dict = {"n": nm[0], "err_newmark": nm[1]}
+    for label, events in (("events", True), ("plain", False)):
+        for k in range(2, 25):
+            rtol = 10.0 ** (-k / 2)
+
+            def run(rtol=rtol, events=events):
+                return reference_poincare(
+                    omega, model, p, 0, periods, start, rtol=rtol, atol=rtol * 1e-2, events=events
+                )
+
+            err = float(np.max(np.abs(run().states - fine)))
+            if err <= eps:
+                ratio, _, _ = paired_ratio(nm[2], run)
+                out[label] = {"rtol": rtol, "err": err, "ratio": ratio}
+                break
+        else:
+            out[label] = None
+    return out
+
+
 def work_precision(model: str, omega: float, periods: int, fine_steps: int = 512) -> dict:
     """Work-precision data of both integrators on one piece of work (same omega, start state and
     periods): Newmark at several step counts and DOP853 (events and plain) at rtol 1e-1 ... 1e-7.
@@ -324,6 +370,21 @@ def main(argv: list[str] | None = None) -> int:
                     f"    {what}: rtol {s['rtol']:.1e} -> error {s['err']:.2e}, {s['time'] * 1e3:8.1f} ms CPU, "
                     f"{s['nfev']} RHS evals -> Newmark is {s['ratio']:,.0f}x faster"
                 )
+    print("\n== the same work at the tests' accuracy bound (1e-3 b0): smallest N and loosest rtol reaching it")
+    for model, w in work:
+        r = ratio_at_bound(model, w, 20 if args.quick else 50)
+        if r is None:
+            print(f"{model:8s} omega={w}: no N <= 256 reached 1e-3")
+            continue
+        cells = []
+        for label in ("events", "plain"):
+            s = r[label]
+            cells.append(
+                f"DOP853 {label} rtol {s['rtol']:.1e} (error {s['err']:.1e}) -> {s['ratio']:,.0f}x"
+                if s
+                else f"DOP853 {label}: not reached"
+            )
+        print(f"{model:8s} omega={w}: Newmark N={r['n']} (error {r['err_newmark']:.1e}); " + "; ".join(cells))
     if args.work_precision:
         print("\n== work-precision: error (b0) / CPU time per run; smallest N and loosest rtol reaching an error bound")
         for model, w in work:
