@@ -168,3 +168,22 @@ def test_simulate_batch_rejects_bad_parameter_lists():
         simulate_batch(1.0, params=[])
     with pytest.raises(ValueError, match="params must be a GearParams or a list"):
         simulate_batch(1.0, params="kappa=0.1")
+
+
+def test_parameter_study_example_runs(tmp_path):
+    """examples/parameter_study.py (simulate_batch with one GearParams per system) runs and writes
+    its table and figure."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "examples" / "parameter_study.py"
+    png = tmp_path / "study.png"
+    out = subprocess.run(
+        [sys.executable, str(script), "--quick", "--kappas", "0.1", "0.3", "--plot", str(png)],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "16 runs of 60 + 40 mesh periods" in out.stdout
+    assert "| 0.1 |" in out.stdout and "| 0.3 |" in out.stdout
+    assert png.stat().st_size > 10_000
