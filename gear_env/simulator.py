@@ -517,8 +517,9 @@ def simulate_batch(
     transient: int = 300,
     steps_per_period: int | None = None,
     params: GearParams | Sequence[GearParams] | None = None,
+    omega_end: Any = None,
 ) -> list[IntervalStats]:
-    """Simulate independent gear pairs at several fixed meshing frequencies in one SIMD call.
+    """Simulate independent gear pairs at several meshing frequencies in one SIMD call.
 
     Each omega starts from the A10 initial state, runs ``transient`` mesh periods and then
     ``periods`` recorded ones, exactly as ``GearSimulator(params, model, N, omega)`` followed by
@@ -528,7 +529,9 @@ def simulate_batch(
     fresh-start bifurcation diagrams; a continuation sweep (each point starting from the last,
     :func:`gear_env.analysis.sweep`) is sequential by nature. ``params`` may give one parameter
     set per system (a study over kappa, backlash, damping...); a single omega is then used for
-    all of them.
+    all of them. With ``omega_end`` the recorded periods are a ramp (omega linear in time from
+    each omega to its omega_end, as ``advance(periods, omega_end=...)``): run-up and run-down
+    studies.
 
     Args:
         omegas: meshing frequencies Omega/omega_n (each finite and > 0); at least one.
@@ -541,6 +544,9 @@ def simulate_batch(
             with kappa = 0.2), or a sequence of them, one per system; its length must equal the
             number of omegas, or omegas may be a single value. Each system's results are in its
             own parameter set's units (b0 = its half backlash unless ``b0`` is set).
+        omega_end: None (default: omega held), one value for all systems or one per system:
+            omega at the end of the recorded periods (each finite and > 0). The transient is at
+            the start omegas. The default step count then follows the smallest of all omegas.
 
     Returns:
         One :class:`IntervalStats` of the recorded periods per system, in order.
@@ -559,22 +565,23 @@ def simulate_batch(
     ps = _check_params_rows(params, w.size)
     if len(ps) > 1 and w.size == 1:
         w = np.full(len(ps), w[0])
-    nsp = resolve_steps(steps_per_period, float(w.min()))
     n = w.size
+    w_end = w if omega_end is None else _check_omega_end(omega_end, n)
+    nsp = resolve_steps(steps_per_period, float(min(w.min(), w_end.min())))
     per_row = len(ps) == n  # else one shared parameter set
     C = np.stack([q.consts for q in (ps if per_row else ps * n)])
     x0 = [default_initial_state(q, model) for q in ps]
     X = np.stack(x0 if per_row else x0 * n)
     A = np.zeros((n, K.NDOF))
 
-    def run(count: int, periods_before: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Advance every system by ``count`` periods; (poincare, stats, elapsed) or raise."""
+    def run(count: int, periods_before: int, w1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Advance every system by ``count`` periods (omega w -> w1); (poincare, stats, elapsed) or raise."""
         pc = np.zeros((n, count, K.N_PC))
         st = np.zeros((n, K.N_STATS))
         status = np.zeros(n, np.int64)
         el = np.zeros(n)
         done = BK.integrate_stats_lanes(
-            X, A, w, w, count, nsp, C, code, pc, st, status, el, NEWTON_MAX_ITER, NEWTON_TOL
+            X, A, w, w1, count, nsp, C, code, pc, st, status, el, NEWTON_MAX_ITER, NEWTON_TOL
         )
         bad = np.flatnonzero(status != K.OK)
         if bad.size:
@@ -584,6 +591,15 @@ def simulate_batch(
         return pc, st, el
 
     if n_tr > 0:
-        run(n_tr, 0)
-    pc, st, el = run(n_rec, n_tr)
-    return [IntervalStats(float(w[i]), float(w[i]), n_rec, float(el[i]), pc[i], st[i]) for i in range(n)]
+        run(n_tr, 0, w)
+    pc, st, el = run(n_rec, n_tr, w_end)
+    return [IntervalStats(float(w[i]), float(w_end[i]), n_rec, float(el[i]), pc[i], st[i]) for i in range(n)]
+
+
+def _check_omega_end(omega_end: Any, n: int) -> np.ndarray:
+    """simulate_batch's ``omega_end``: one value for all n systems or n values, each a valid omega."""
+    we = np.atleast_1d(np.asarray(omega_end, dtype=object))
+    if we.ndim != 1 or we.size not in (1, n):
+        raise ValueError(f"omega_end must be one value or {n} values (one per system), got shape {we.shape}")
+    vals = np.array([check_omega(v, f"omega_end[{i}]") for i, v in enumerate(we)])
+    return np.full(n, vals[0]) if vals.size == 1 else vals

@@ -187,3 +187,28 @@ def test_parameter_study_example_runs(tmp_path):
     assert "16 runs of 60 + 40 mesh periods" in out.stdout
     assert "| 0.1 |" in out.stdout and "| 0.3 |" in out.stdout
     assert png.stat().st_size > 10_000
+
+
+def test_simulate_batch_ramps_equal_advance_with_omega_end():
+    """omega_end: the recorded periods ramp, bit for bit as GearSimulator.advance(omega_end=...)."""
+    from gear_env import GearSimulator, simulate_batch
+
+    starts, ends = [0.6, 1.2, 2.0], [1.2, 0.9, 2.6]
+    got = simulate_batch(starts, periods=6, transient=5, steps_per_period=64, omega_end=ends)
+    for w0, w1, g in zip(starts, ends, got):
+        sim = GearSimulator(None, "dynamic", 64, w0)
+        sim.advance(5)
+        ref = sim.advance(6, omega_end=w1)
+        assert (g.omega_start, g.omega_end) == (w0, w1)
+        np.testing.assert_array_equal(g.poincare, ref.poincare)
+        np.testing.assert_array_equal(g.stats, ref.stats)
+        assert g.duration == ref.duration
+    shared = simulate_batch(starts, periods=2, transient=0, steps_per_period=64, omega_end=1.0)
+    assert [g.omega_end for g in shared] == [1.0, 1.0, 1.0]
+    # the default step count follows the smallest omega, omega_end included
+    low = simulate_batch([1.0], periods=1, transient=0, omega_end=0.1)[0]
+    assert low.stats[K.ST_STEPS] > 192
+    with pytest.raises(ValueError, match=r"omega_end\[1\]"):
+        simulate_batch(starts, omega_end=[1.0, float("nan"), 1.0])
+    with pytest.raises(ValueError, match="omega_end must be one value or 3 values"):
+        simulate_batch(starts, omega_end=[1.0, 1.1])
