@@ -555,10 +555,7 @@ def simulate_batch(
         ValueError: on invalid arguments (the message names the argument).
         SimulationDivergedError: if any system blows up (the first such omega is named).
     """
-    ws = np.atleast_1d(np.asarray(omegas, dtype=object))
-    if ws.ndim != 1 or ws.size == 0:
-        raise ValueError(f"omegas must be a non-empty 1-D sequence of frequencies, got shape {ws.shape}")
-    w = np.array([check_omega(v, f"omegas[{i}]") for i, v in enumerate(ws)])
+    w = _check_omega_list(omegas, "omegas")
     n_rec = check_count(periods, "periods")
     n_tr = check_count(transient, "transient", 0)
     code = model_code(model)
@@ -596,10 +593,18 @@ def simulate_batch(
     return [IntervalStats(float(w[i]), float(w_end[i]), n_rec, float(el[i]), pc[i], st[i]) for i in range(n)]
 
 
+def _check_omega_list(values: Any, name: str) -> np.ndarray:
+    """A non-empty 1-D sequence (or one value) of meshing frequencies, each checked by
+    :func:`check_omega` under the name ``name[i]``; a float array."""
+    arr = np.atleast_1d(np.asarray(values, dtype=object))
+    if arr.ndim != 1 or arr.size == 0:
+        raise ValueError(f"{name} must be a non-empty 1-D sequence of frequencies, got shape {arr.shape}")
+    return np.array([check_omega(v, f"{name}[{i}]") for i, v in enumerate(arr)])
+
+
 def _check_omega_end(omega_end: Any, n: int) -> np.ndarray:
     """simulate_batch's ``omega_end``: one value for all n systems or n values, each a valid omega."""
-    we = np.atleast_1d(np.asarray(omega_end, dtype=object))
-    if we.ndim != 1 or we.size not in (1, n):
-        raise ValueError(f"omega_end must be one value or {n} values (one per system), got shape {we.shape}")
-    vals = np.array([check_omega(v, f"omega_end[{i}]") for i, v in enumerate(we)])
+    vals = _check_omega_list(omega_end, "omega_end")
+    if vals.size not in (1, n):
+        raise ValueError(f"omega_end must be one value or {n} values (one per system), got shape {vals.shape}")
     return np.full(n, vals[0]) if vals.size == 1 else vals
