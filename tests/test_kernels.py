@@ -179,3 +179,40 @@ def test_free_vibration_period_through_dead_zone(v_gap):
     assert len(T) >= 5
     expected = 2 * np.pi / wc + 4 * 1.0 / v_gap
     assert np.max(np.abs(T - expected)) / expected < 2e-5
+
+
+def test_integrate_stats_split_steps_match_step_by_step():
+    """The stats loop's fallback for steps that Newton does not finish (split into sub-steps, taken
+    outside the hot loop) gives, bit for bit, what stepping one step at a time with
+    ``newmark_step`` gives. ``max_iter=1`` makes contact changes need the fallback."""
+    p = GearParams()
+    c = K.readonly(p.consts)
+    w, n, periods = 0.5, 32, 200
+    x = default_initial_state(p, "constant")
+    a = np.zeros(5)
+    pc = np.zeros((periods, K.N_PC))
+    st = np.zeros(K.N_STATS)
+    status, done, _ = K.integrate_stats(x, a, 0.0, w, w, periods, n, c, 0, pc, st, 1, 1e-10, True)
+    assert (status, done) == (K.OK, periods)
+    assert st[K.ST_SPLITS] >= 10  # the fallback ran
+    xr = default_initial_state(p, "constant")
+    ar = np.zeros(5)
+    work = np.zeros(K.WORK_SIZE)
+    K.start_step(xr, ar, 0.0, w, c, 0, work)
+    tab = K._excitation_table(0.0, n, c)
+    dphi = 2 * np.pi / n
+    splits = sep = 0.0
+    for j in range(periods * n):
+        m = (j + 1) % n
+        st_j, F, region, delta, bd, split = K.newmark_step(
+            xr, ar, dphi * j, dphi, tab[m, 0], tab[m, 1], tab[m, 2], w, w, c, 0, work, 1, 1e-10
+        )
+        assert st_j == K.OK
+        splits += split
+        sep += region == 0
+        if m == 0:
+            assert np.array_equal(pc[(j + 1) // n - 1, :10], xr), j
+            assert pc[(j + 1) // n - 1, K.PC_FORCE] == F
+    assert np.array_equal(x, xr) and np.array_equal(a, ar)
+    assert st[K.ST_SPLITS] == splits and st[K.ST_STEPS] == periods * n
+    assert st[K.ST_SEP_TIME] == pytest.approx(sep * dphi / w, rel=1e-12)
