@@ -617,21 +617,15 @@ def guess_t(s0, s1, last):
 
 
 @kernel_inline
-def interval_step_t(j, s, g, wa, hc, phi0, dphi, w0, ww, total, n_steps, tab, c, k, dynamic, max_iter, tol):
-    """Step j of an interval of ``total`` steps in which omega goes linearly in time from w0
-    (omega^2 linear in the step index; ``ww`` = (w1^2 - w0^2)/total, its increment per step): the
-    step from omega ``wa`` with the excitation table ``tab`` (:func:`_excitation_table`). ``hc``
-    are the coefficients of the previous step, reused while omega is constant. Returns
-    :func:`newmark_step_t`'s tuple followed by (omega at the end, step coefficients, phase index
-    of the end of the step)."""
-    wb = w0 if ww == 0.0 else math.sqrt(w0 * w0 + ww * (j + 1.0))
-    if ww != 0.0:
-        hc = step_coeffs(2.0 * dphi / (wa + wb), k)
-    m = (j + 1) % n_steps
-    st, s1, F, region, delta, bd, sp, cp, split = newmark_step_t(
-        s, g, phi0 + dphi * j, dphi, tab[m, 0], tab[m, 1], tab[m, 2], wa, wb, hc, c, k, dynamic, max_iter, tol
-    )
-    return st, s1, F, region, delta, bd, sp, cp, split, wb, hc, m
+def omega_step_t(j, wa, hc, w0, ww, dphi, k):
+    """Meshing frequency at the end of step j of an interval in which omega goes linearly in time
+    from w0 (omega^2 linear in the step index; ``ww`` = (w1^2 - w0^2)/total, its increment per
+    step), and the coefficients of the step from ``wa``: ``hc`` (those of the previous step) is
+    reused while omega is constant. Returns (omega at the end of the step, step coefficients)."""
+    if ww == 0.0:
+        return w0, hc
+    wb = math.sqrt(w0 * w0 + ww * (j + 1.0))
+    return wb, step_coeffs(2.0 * dphi / (wa + wb), k)
 
 
 @kernel_inline
@@ -741,33 +735,61 @@ def integrate_record(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, out, ma
     el = 0.0
     wa = w0
     hc = step_coeffs(dphi / w0, k)
-    for j in range(total):
-        st, s1, F, region, delta, bd, sp, cp, split, wb, hc, m = interval_step_t(
-            j, s, g, wa, hc, phi0, dphi, w0, ww, total, n_steps, tab, c, k, dynamic, max_iter, tol
+    j = 0
+    while j < total:  # two loops, as in integrate_stats_tab: the inner one calls no function
+        need_split = False
+        while j < total:
+            wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
+            m = (j + 1) % n_steps
+            ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(
+                s, g, tab[m, 0], tab[m, 1], tab[m, 2], wb, hc, k, dynamic, max_iter, tol
+            )
+            if not ok:
+                need_split = True
+                break
+            el += hc[0]
+            g = guess_t(s, s1, dynamic == 0)
+            s = s1
+            if _diverged_t(s):
+                store_t(s, x, a)
+                return DIVERGED, j + 1, el
+            _record_row_t(out, j + 1, s, el, phi0 + dphi * (j + 1), wb, delta, bd, sp, cp, F, region, c, dynamic)
+            wa = wb
+            j += 1
+        if not need_split:
+            break
+        st, s1, F, region, delta, bd, sp, cp, _split = split_step_t(
+            s, phi0 + dphi * j, dphi, wa, wb, c, k, runtime_int(dynamic), max_iter, tol
         )
         el += hc[0]
         if st != OK:
             store_t(s, x, a)
             return st, j + 1, el
-        g = guess_t(s, s1, split or dynamic == 0)
+        g = guess_t(s, s1, True)
         s = s1
         if _diverged_t(s):
             store_t(s, x, a)
             return DIVERGED, j + 1, el
-        r = j + 1
-        for i in range(NSTATE):
-            out[r, i] = s[i]
-        out[r, REC_S] = el
-        out[r, REC_PHI] = phi0 + dphi * (j + 1)
-        out[r, REC_OMEGA] = wb
-        out[r, REC_DELTA] = delta
-        out[r, REC_BD] = bd
-        out[r, REC_PSI] = psi_t(sp, cp, c, dynamic)
-        out[r, REC_FORCE] = F
-        out[r, REC_REGION] = region
+        _record_row_t(out, j + 1, s, el, phi0 + dphi * (j + 1), wb, delta, bd, sp, cp, F, region, c, dynamic)
         wa = wb
+        j += 1
     store_t(s, x, a)
     return OK, total + 1, el
+
+
+@kernel_inline
+def _record_row_t(out, r, s, el, phi, w, delta, bd, sp, cp, F, region, c, dynamic):
+    """Row r of a recorded time series (:func:`integrate_record`)."""
+    for i in range(NSTATE):
+        out[r, i] = s[i]
+    out[r, REC_S] = el
+    out[r, REC_PHI] = phi
+    out[r, REC_OMEGA] = w
+    out[r, REC_DELTA] = delta
+    out[r, REC_BD] = bd
+    out[r, REC_PSI] = psi_t(sp, cp, c, dynamic)
+    out[r, REC_FORCE] = F
+    out[r, REC_REGION] = region
 
 
 @kernel
@@ -921,9 +943,7 @@ def integrate_stats_tab(
     while j < total:
         need_split = False
         while j < total:  # the hot loop: no calls
-            wb = w0 if ww == 0.0 else math.sqrt(w0 * w0 + ww * (j + 1.0))
-            if ww != 0.0:
-                hc = step_coeffs(2.0 * dphi / (wa + wb), k)
+            wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
             m = (j + 1) % n_steps
             ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(
                 s, g, tab[m, 0], tab[m, 1], tab[m, 2], wb, hc, k, dynamic, max_iter, tol

@@ -181,10 +181,10 @@ def test_free_vibration_period_through_dead_zone(v_gap):
     assert np.max(np.abs(T - expected)) / expected < 2e-5
 
 
-def test_integrate_stats_split_steps_match_step_by_step():
-    """The stats loop's fallback for steps that Newton does not finish (split into sub-steps, taken
-    outside the hot loop) gives, bit for bit, what stepping one step at a time with
-    ``newmark_step`` gives. ``max_iter=1`` makes contact changes need the fallback."""
+def test_integrate_split_steps_match_step_by_step():
+    """The fallback of the stats and the recording loops for steps that Newton does not finish
+    (split into sub-steps, taken outside the hot loop) gives, bit for bit, what stepping one
+    step at a time with ``newmark_step`` gives. ``max_iter=1`` makes contact changes need it."""
     p = GearParams()
     c = K.readonly(p.consts)
     w, n, periods = 0.5, 32, 200
@@ -195,6 +195,10 @@ def test_integrate_stats_split_steps_match_step_by_step():
     status, done, _ = K.integrate_stats(x, a, 0.0, w, w, periods, n, c, 0, pc, st, 1, 1e-10, True)
     assert (status, done) == (K.OK, periods)
     assert st[K.ST_SPLITS] >= 10  # the fallback ran
+    xo = default_initial_state(p, "constant")
+    ao = np.zeros(5)
+    rec = np.zeros((periods * n + 1, K.N_REC))
+    assert K.integrate_record(xo, ao, 0.0, w, w, periods, n, c, 0, rec, 1, 1e-10)[:2] == (K.OK, periods * n + 1)
     xr = default_initial_state(p, "constant")
     ar = np.zeros(5)
     work = np.zeros(K.WORK_SIZE)
@@ -210,6 +214,7 @@ def test_integrate_stats_split_steps_match_step_by_step():
         assert st_j == K.OK
         splits += split
         sep += region == 0
+        assert np.array_equal(rec[j + 1, :10], xr) and rec[j + 1, K.REC_FORCE] == F, j
         if m == 0:
             assert np.array_equal(pc[(j + 1) // n - 1, :10], xr), j
             assert pc[(j + 1) // n - 1, K.PC_FORCE] == F
