@@ -1,0 +1,64 @@
+"""The benchmark and example scripts refer only to names the package has.
+
+numba resolves a kernel's global names when it compiles, not when the script is imported, so a
+script that calls a renamed kernel function imports fine and fails only when it is run (this
+happened to ``benchmarks/kernel_interleave.py``). This test reads every script's syntax tree and
+checks each ``from gear_env... import name`` and each ``alias.name`` where ``alias`` is a
+``gear_env`` module imported as ``import gear_env.x as alias`` or ``from gear_env import x as alias``.
+"""
+
+from __future__ import annotations
+
+import ast
+import importlib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPTS = sorted([*ROOT.glob("benchmarks/*.py"), *ROOT.glob("examples/*.py"), ROOT / "train.py"])
+
+
+def _missing_names(path: Path) -> list[str]:
+    """``module.name`` strings that a script uses but the package does not define."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    aliases: dict[str, object] = {}  # local name -> gear_env module object
+    missing = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "gear_env":
+            mod = importlib.import_module(node.module)
+            for a in node.names:
+                if not hasattr(mod, a.name):
+                    try:  # a submodule imported by name (from gear_env import kernels)
+                        sub = importlib.import_module(f"{node.module}.{a.name}")
+                    except ImportError:
+                        missing.append(f"{node.module}.{a.name}")
+                        continue
+                    aliases[a.asname or a.name] = sub
+                elif type(getattr(mod, a.name)).__name__ == "module":
+                    aliases[a.asname or a.name] = getattr(mod, a.name)
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.split(".")[0] == "gear_env" and a.asname:
+                    aliases[a.asname] = importlib.import_module(a.name)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases:
+            mod = aliases[node.value.id]
+            if not hasattr(mod, node.attr):
+                missing.append(f"{mod.__name__}.{node.attr} (line {node.lineno})")  # type: ignore[attr-defined]
+    return missing
+
+
+@pytest.mark.parametrize("path", SCRIPTS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_script_uses_only_existing_package_names(path):
+    assert _missing_names(path) == []
+
+
+def test_the_check_finds_a_missing_kernel_name(tmp_path):
+    """The check itself can fail: a script calling a kernel function that does not exist."""
+    bad = tmp_path / "bad.py"
+    bad.write_text("from gear_env import kernels as K\n\ndef f():\n    return K.interval_step_t(1)\n")
+    assert _missing_names(bad) == ["gear_env.kernels.interval_step_t (line 4)"]
+    worse = tmp_path / "worse.py"
+    worse.write_text("from gear_env.kernels import no_such_kernel\n")
+    assert _missing_names(worse) == ["gear_env.kernels.no_such_kernel"]
