@@ -518,6 +518,7 @@ def simulate_batch(
     steps_per_period: int | None = None,
     params: GearParams | Sequence[GearParams] | None = None,
     omega_end: Any = None,
+    initial_states: Any = None,
 ) -> list[IntervalStats]:
     """Simulate independent gear pairs at several meshing frequencies in one SIMD call.
 
@@ -531,7 +532,8 @@ def simulate_batch(
     set per system (a study over kappa, backlash, damping...); a single omega is then used for
     all of them. With ``omega_end`` the recorded periods are a ramp (omega linear in time from
     each omega to its omega_end, as ``advance(periods, omega_end=...)``): run-up and run-down
-    studies.
+    studies. ``initial_states`` replaces the A10 start: one state per system (basins of
+    attraction: many starts at one omega, see ``examples/basins.py``) or one shared state.
 
     Args:
         omegas: meshing frequencies Omega/omega_n (each finite and > 0); at least one.
@@ -547,6 +549,10 @@ def simulate_batch(
         omega_end: None (default: omega held), one value for all systems or one per system:
             omega at the end of the recorded periods (each finite and > 0). The transient is at
             the start omegas. The default step count then follows the smallest of all omegas.
+        initial_states: None (default: each system's A10 static equilibrium), one state of 10
+            values [X_p, Y_p, X_g, Y_g, U and their derivatives; b0 units, derivatives per unit
+            natural time] for all systems, or an (n, 10) array, one row per system. With one
+            omega and one parameter set, n rows make n systems.
 
     Returns:
         One :class:`IntervalStats` of the recorded periods per system, in order.
@@ -560,15 +566,24 @@ def simulate_batch(
     n_tr = check_count(transient, "transient", 0)
     code = model_code(model)
     ps = _check_params_rows(params, w.size)
-    if len(ps) > 1 and w.size == 1:
-        w = np.full(len(ps), w[0])
-    n = w.size
+    S = None if initial_states is None else _check_states_rows(initial_states)
+    n = max(w.size, len(ps), 1 if S is None else len(S))
+    for name, size in (("omegas", w.size), ("params", len(ps)), ("initial_states", 1 if S is None else len(S))):
+        if size not in (1, n):
+            raise ValueError(
+                f"{name} has {size} entries but there are {n} systems: give one per system or one shared value"
+            )
+    if w.size == 1:
+        w = np.full(n, w[0])
     w_end = w if omega_end is None else _check_omega_end(omega_end, n)
     nsp = resolve_steps(steps_per_period, float(min(w.min(), w_end.min())))
     per_row = len(ps) == n  # else one shared parameter set
     C = np.stack([q.consts for q in (ps if per_row else ps * n)])
-    x0 = [default_initial_state(q, model) for q in ps]
-    X = np.stack(x0 if per_row else x0 * n)
+    if S is not None:
+        X = np.repeat(S, n, axis=0) if len(S) == 1 else S
+    else:
+        x0 = [default_initial_state(q, model) for q in ps]
+        X = np.stack(x0 if per_row else x0 * n)
     A = np.zeros((n, K.NDOF))
 
     def run(count: int, periods_before: int, w1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -591,6 +606,28 @@ def simulate_batch(
         run(n_tr, 0, w)
     pc, st, el = run(n_rec, n_tr, w_end)
     return [IntervalStats(float(w[i]), float(w_end[i]), n_rec, float(el[i]), pc[i], st[i]) for i in range(n)]
+
+
+def _check_states_rows(states: Any) -> np.ndarray:
+    """simulate_batch's ``initial_states``: one state (10,) or one per system (m, 10), all finite;
+    a float array of shape (m, 10)."""
+    try:
+        arr = np.array(states, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(
+            f"initial_states must be numbers of shape (10,) or (n, 10), got {type(states).__name__}"
+        ) from exc
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[0] == 0 or arr.shape[1] != K.NSTATE:
+        raise ValueError(
+            "initial_states must have shape (10,) or (n, 10) [5 positions, 5 velocities per system], "
+            f"got {np.shape(states)}"
+        )
+    bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
+    if bad.size:
+        raise ValueError(f"initial_states[{bad[0]}] must be finite, got {arr[bad[0]].tolist()}")
+    return arr
 
 
 def _check_omega_list(values: Any, name: str) -> np.ndarray:
