@@ -275,3 +275,25 @@ def test_basins_example_runs(tmp_path):
     assert len(shares) == 3 and shares[0] >= shares[2]  # nearer starts stay quiet at least as often
     assert 0.0 < shares[2] < 100.0  # both motions are reached from the grid
     assert png.stat().st_size > 10_000
+
+
+def test_hysteresis_dwell_example_runs():
+    """examples/hysteresis_dwell.py --quick: the dynamic model's torus-end hysteresis shrinks when
+    the dwell per point grows from 300 to 2,000 mesh periods, and the held torus is reported."""
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "examples" / "hysteresis_dwell.py"
+    out = subprocess.run([sys.executable, str(script), "--quick"], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    row = next(line for line in out.stdout.splitlines() if line.startswith("| torus end | dynamic |"))
+    short, long_ = row.split("|")[3:5]
+
+    def width(cell: str) -> float:  # total width of the omega ranges in a cell
+        spans = re.findall(r"(\d\.\d+)(?:-(\d\.\d+))?", cell)
+        return sum(float(b or a) - float(a) + 0.01 for a, b in spans)
+
+    assert 0.0 < width(long_) < width(short)
+    assert "| dynamic, 2.410 |" in out.stdout
