@@ -222,6 +222,66 @@ def ratio_at_bound(model: str, omega: float, periods: int, eps: float = 1e-3) ->
     return out
 
 
+BATCH_OMEGAS = (*np.round(np.linspace(0.7, 1.55, 10), 3), *np.round(np.linspace(2.5, 2.95, 6), 3))
+"""The fresh-start work of ``ratio_batch``: 16 omegas in the period-1 bands of both models."""
+
+
+def ratio_batch(model: str, omegas, periods: int, n_steps: int) -> dict:
+    """The work of a fresh-start diagram: ``periods`` mesh periods at each of ``omegas``, each from
+    its own attractor state. Newmark runs all of them in one ``simulate_batch`` call (SIMD across
+    systems) and, for comparison, one ``GearSimulator`` after the other; DOP853 runs each omega at
+    the loosest rtol (half decades) whose error is no larger than Newmark's at that omega. Returns
+    the paired ratios (sum of the DOP853 times over the Newmark time)."""
+    from gear_env import GearParams, GearSimulator, simulate_batch
+    from gear_env.reference import reference_poincare
+
+    p = GearParams()
+    starts, fines = [], []
+    for w in omegas:
+        sim = GearSimulator(p, model, 512, float(w))
+        sim.advance(300)
+        starts.append(sim.state)
+        fines.append(reference_poincare(float(w), model, p, 0, periods, starts[-1], rtol=1e-12, atol=1e-13).states)
+    S = np.stack(starts)
+
+    def batch():
+        return simulate_batch(list(omegas), model, periods, 0, n_steps, initial_states=S)
+
+    def single():
+        for w, s0 in zip(omegas, starts, strict=True):
+            GearSimulator(p, model, n_steps, float(w), s0).advance(periods)
+
+    errs = [float(np.max(np.abs(r.poincare[:, :10] - f))) for r, f in zip(batch(), fines, strict=True)]
+    out: dict = {"omegas": len(omegas), "err_max": max(errs)}
+    for label, events in (("events", True), ("plain", False)):
+        runs = []
+        for w, s0, f, e in zip(omegas, starts, fines, errs, strict=True):
+            for k in range(2, 25):
+                rtol = 10.0 ** (-k / 2)
+
+                def run(w=float(w), s0=s0, rtol=rtol, events=events):
+                    return reference_poincare(w, model, p, 0, periods, s0, rtol=rtol, atol=rtol * 1e-2, events=events)
+
+                if float(np.max(np.abs(run().states - f))) <= e:
+                    runs.append(run)
+                    break
+            else:
+                runs = None
+                break
+        if runs is None:
+            out[label] = None
+            continue
+
+        def dop853(runs=runs):
+            for r in runs:
+                r()
+
+        r_batch, t_dop, t_batch = paired_ratio(batch, dop853)
+        r_single, _, t_single = paired_ratio(single, dop853)
+        out[label] = {"batch": r_batch, "single": r_single, "t_dop": t_dop, "t_batch": t_batch, "t_single": t_single}
+    return out
+
+
 def work_precision(model: str, omega: float, periods: int, fine_steps: int = 512) -> dict:
     """Work-precision data of both integrators on one piece of work (same omega, start state and
     periods): Newmark at several step counts and DOP853 (events and plain) at rtol 1e-1 ... 1e-7.
@@ -301,6 +361,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description="simulator benchmark (one core)")
     ap.add_argument("--quick", action="store_true", help="fewer periods (smoke test)")
     ap.add_argument("--no-pin", action="store_true", help="do not pin to one CPU")
+    ap.add_argument(
+        "--batch-ratio",
+        action="store_true",
+        help="also the ratio on a fresh-start diagram's work (16 omegas, simulate_batch vs DOP853 per omega)",
+    )
     ap.add_argument(
         "--work-precision",
         action="store_true",
@@ -386,6 +451,24 @@ def main(argv: list[str] | None = None) -> int:
                 else f"DOP853 {label}: not reached"
             )
         print(f"{model:8s} omega={w}: Newmark N={r['n']} (error {r['err_newmark']:.1e}); " + "; ".join(cells))
+    if args.batch_ratio:
+        print(
+            f"\n== a fresh-start diagram's work: {len(BATCH_OMEGAS)} omegas in the period-1 bands "
+            f"({BATCH_OMEGAS[0]}-{BATCH_OMEGAS[9]}, {BATCH_OMEGAS[10]}-{BATCH_OMEGAS[-1]}), default {n} steps, "
+            "each DOP853 run at the loosest rtol reaching Newmark's error at that omega"
+        )
+        for model in ("dynamic", "constant"):
+            r = ratio_batch(model, BATCH_OMEGAS, 20 if args.quick else 50, n)
+            for label in ("events", "plain"):
+                x = r[label]
+                if x is None:
+                    print(f"{model:8s} DOP853 {label}: some omega reached no rtol >= 1e-12")
+                    continue
+                print(
+                    f"{model:8s} DOP853 {label:6s} {x['t_dop'] * 1e3:7.0f} ms; Newmark simulate_batch "
+                    f"{x['t_batch'] * 1e3:5.2f} ms -> {x['batch']:,.0f}x; one GearSimulator after the other "
+                    f"{x['t_single'] * 1e3:5.2f} ms -> {x['single']:,.0f}x (largest Newmark error {r['err_max']:.1e} b0)"
+                )
     if args.work_precision:
         print("\n== work-precision: error (b0) / CPU time per run; smallest N and loosest rtol reaching an error bound")
         for model, w in work:
