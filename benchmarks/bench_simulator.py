@@ -467,7 +467,8 @@ def main(argv: list[str] | None = None) -> int:
                 print(
                     f"{model:8s} DOP853 {label:6s} {x['t_dop'] * 1e3:7.0f} ms; Newmark simulate_batch "
                     f"{x['t_batch'] * 1e3:5.2f} ms -> {x['batch']:,.0f}x; one GearSimulator after the other "
-                    f"{x['t_single'] * 1e3:5.2f} ms -> {x['single']:,.0f}x (largest Newmark error {r['err_max']:.1e} b0)"
+                    f"{x['t_single'] * 1e3:5.2f} ms -> {x['single']:,.0f}x "
+                    f"(largest Newmark error {r['err_max']:.1e} b0)"
                 )
     if args.work_precision:
         print("\n== work-precision: error (b0) / CPU time per run; smallest N and loosest rtol reaching an error bound")
