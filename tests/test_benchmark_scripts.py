@@ -62,3 +62,22 @@ def test_the_check_finds_a_missing_kernel_name(tmp_path):
     worse = tmp_path / "worse.py"
     worse.write_text("from gear_env.kernels import no_such_kernel\n")
     assert _missing_names(worse) == ["gear_env.kernels.no_such_kernel"]
+
+
+def test_batch_ratio_benchmark_runs_on_a_small_case():
+    """bench_simulator.ratio_batch (simulate_batch from given starts vs DOP853 per omega) on two
+    omegas and a few periods: both DOP853 variants found a tolerance that reaches Newmark's error
+    and were timed slower than the Newmark batch."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        import bench_simulator as B
+    finally:
+        sys.path.pop(0)
+    r = B.ratio_batch("constant", (1.2, 2.8), 3, 64)
+    assert r["omegas"] == 2 and 0.0 < r["err_max"] < 1e-2
+    for label in ("events", "plain"):
+        x = r[label]
+        assert x is not None and x["batch"] > 1.0 and x["single"] > 1.0
+        assert x["t_dop"] > x["t_batch"] > 0.0
