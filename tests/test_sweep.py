@@ -183,3 +183,33 @@ def test_cli_sweep_writes_json_netcdf_and_plot(tmp_path, capsys):
     assert png.read_bytes()[:4] == b"\x89PNG"
     assert main(["sweep", "--points", "0", "--quiet"]) == 2
     assert "--points" in capsys.readouterr().err
+
+
+def test_drift_flags_a_transient_and_not_a_settled_motion():
+    """A reverse sweep from 2.50 down to 2.37 with 300 periods per point arrives at 2.37 on the
+    slowly departing quiet motion (docs/RESULTS.md, "Hysteresis and dwell time"), and its first
+    point (from the static equilibrium) is still settling: both drift. The period-1 points in
+    between and at 1.2 recur and are not flagged; with 4,000 periods per point nothing is."""
+    w = [1.2, *np.round(np.arange(2.37, 2.505, 0.01), 2)]
+    short = sweep(w, model="dynamic", direction="reverse", transient=300, periods=200, lyapunov=False, progress=False)
+    d = dict(zip(np.round(short.omega, 2), short.drift()))
+    assert d[1.2] < 0.01  # settled period-1 (3e-4 here: it follows 2.37 after 300 periods)
+    assert d[2.37] > 0.1 and d[2.5] > 0.1
+    assert max(d[x] for x in np.round(np.arange(2.41, 2.495, 0.01), 2)) < 0.02
+    flagged = list(np.round(short.unsettled(), 2))
+    assert 2.37 in flagged and 2.5 in flagged and 1.2 not in flagged and 2.45 not in flagged
+    long_ = sweep(w, model="dynamic", direction="reverse", transient=4000, periods=200, lyapunov=False, progress=False)
+    assert long_.unsettled().size == 0
+    assert "drift" in short.to_dataframe().columns
+    with pytest.raises(ValueError, match="threshold"):
+        short.unsettled(threshold=-1.0)
+
+
+def test_cli_sweep_notes_unsettled_points(capsys):
+    from gear_env.cli import main
+
+    args = ["sweep", "--omega-min", "2.37", "--omega-max", "2.50", "--points", "14", "--direction", "reverse",
+            "--transient", "300", "--periods", "200", "--no-lyapunov", "--quiet"]  # fmt: skip
+    assert main(args) == 0
+    note = next(line for line in capsys.readouterr().out.splitlines() if "still drifting" in line)
+    assert "2.3700" in note and "2.5000" in note and "2.4500" not in note and "--transient" in note

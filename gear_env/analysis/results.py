@@ -29,6 +29,9 @@ FORMAT_VERSION = 1
 AMPLITUDE_NAMES = ("U", "delta", "bd", "psi", "force")
 PC_NAMES = STATE_NAMES + ("Delta", "B_d", "psi", "force")
 LYAPUNOV_UNITS = "1 per unit natural time (omega_n t)"
+DRIFT_WARN = 0.1
+"""Default :meth:`SweepResult.unsettled` threshold: settled tori drift by < 0.05 in the sweeps of
+docs/RESULTS.md, decaying transients near the torus edges by 0.05-0.4."""
 
 
 class ResultsFileError(ValueError):
@@ -93,6 +96,37 @@ class SweepResult:
             raise ValueError(f"name must be one of {list(PC_NAMES)}, got {name!r}")
         return self.poincare[:, :, PC_NAMES.index(col)]
 
+    def drift(self, name: str = "U") -> np.ndarray:
+        """(n,) how much the recorded motion still changed during its window, per omega.
+
+        The Poincare samples of one column (default ``U``) are split into the first and the
+        second half of the recorded periods; the drift is the larger of the change of their
+        spread (max - min) and of their mean, over the U amplitude (half peak-to-peak; at least
+        1e-3 b0). A settled periodic motion gives ~0 (its samples recur), a settled torus a few
+        percent (its two halves sample the same invariant circle), a transient that is still
+        decaying or growing more: near a bifurcation, read forward/reverse differences only where
+        both sweeps have a small drift (``DRIFT_WARN``; docs/RESULTS.md, "Hysteresis and dwell
+        time"). Not meaningful for chaotic motion, whose spread fluctuates. Dimensionless.
+        """
+        p = self.poincare_of(name)
+        h = p.shape[1] // 2
+        if h == 0:
+            return np.zeros(len(self))
+        a, b = p[:, :h], p[:, h:]
+        spread = np.abs((b.max(1) - b.min(1)) - (a.max(1) - a.min(1)))
+        mean = np.abs(b.mean(1) - a.mean(1))
+        return np.maximum(spread, mean) / np.maximum(self.amplitude["U"], 1e-3)
+
+    def unsettled(self, threshold: float | None = None) -> np.ndarray:
+        """Omegas of non-chaotic points whose :meth:`drift` exceeds ``threshold`` (default
+        ``DRIFT_WARN``): rerun them with a longer transient before trusting their label or a
+        forward/reverse difference."""
+        thr = DRIFT_WARN if threshold is None else float(threshold)
+        if not (thr > 0 and math.isfinite(thr)):
+            raise ValueError(f"threshold must be finite and > 0, got {threshold!r}")
+        keep = (self.drift() > thr) & np.array([r != "chaotic" for r in self.regime], dtype=bool)
+        return np.sort(self.omega[keep])
+
     def to_dataframe(self):  # -> pandas.DataFrame
         """One row per omega: omega, regime, period, lyapunov, amplitudes, contact loss, ..."""
         import pandas as pd
@@ -111,6 +145,7 @@ class SweepResult:
             back_impacts=self.back_impacts,
             n_clusters=self.n_clusters,
             converged=self.converged,
+            drift=self.drift(),
             steps_per_period=self.steps_per_period,
         )
         return pd.DataFrame(data)

@@ -48,6 +48,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from ..analysis import sweep
+    from ..analysis.results import DRIFT_WARN
     from ..params import GearParams
 
     if args.points < 1:
@@ -78,6 +79,14 @@ def run(args: argparse.Namespace) -> int:
     print(res.summary())
     for lo, hi, lab in res.intervals():
         print(f"  omega {lo:.4f} - {hi:.4f}: {lab}")
+    late = res.unsettled()
+    if late.size:
+        shown = ", ".join(f"{w:.4f}" for w in late[:12]) + (", ..." if late.size > 12 else "")
+        print(
+            f"note: {late.size} point(s) still drifting at the end of their window (drift > {DRIFT_WARN:g}): "
+            f"omega {shown}; their labels, and forward/reverse differences there, may be transients: "
+            "rerun them with a longer --transient"
+        )
     if args.out:
         res.save(args.out)
         print(f"wrote {args.out}")
