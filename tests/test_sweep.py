@@ -201,6 +201,12 @@ def test_drift_flags_a_transient_and_not_a_settled_motion():
     long_ = sweep(w, model="dynamic", direction="reverse", transient=4000, periods=200, lyapunov=False, progress=False)
     assert long_.unsettled().size == 0
     assert "drift" in short.to_dataframe().columns
+    from gear_env.plots.sweep import plot_bifurcation
+
+    legend = [t.get_text() for t in plot_bifurcation(short, lyapunov=False).axes[0].get_legend().get_texts()]
+    assert "still drifting: longer transient" in legend
+    legend = [t.get_text() for t in plot_bifurcation(long_, lyapunov=False).axes[0].get_legend().get_texts()]
+    assert "still drifting: longer transient" not in legend
     with pytest.raises(ValueError, match="threshold"):
         short.unsettled(threshold=-1.0)
 

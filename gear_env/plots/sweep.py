@@ -21,6 +21,9 @@ def regime_color(label: str) -> str:
 def plot_bifurcation(result: Any, name: str = "Delta", ax: Any = None, lyapunov: bool = True) -> Figure:
     """Bifurcation diagram of ``result`` (a :class:`~gear_env.analysis.SweepResult`).
 
+    Points whose motion was still changing during their window (``SweepResult.unsettled()``)
+    are marked by a triangle at the bottom edge.
+
     Args:
         result: the sweep results.
         name: Poincare column plotted (``Delta`` [b0], ``U``, ``B_d``, ``psi``, ``force``...).
@@ -50,10 +53,17 @@ def plot_bifurcation(result: Any, name: str = "Delta", ax: Any = None, lyapunov:
         y = pts[idx].ravel()
         ax.scatter(x, y, s=0.6, color=regime_color(lab), label=None if key in seen else key, rasterized=True)
         seen.add(key)
+    late = result.unsettled() if hasattr(result, "unsettled") else np.zeros(0)
+    if late.size:  # points whose motion was still changing during the window (SweepResult.drift)
+        ax.scatter(late, np.full(late.size, 0.015), transform=ax.get_xaxis_transform(), marker="^", s=16,
+                   color="0.25", label="still drifting: longer transient", zorder=3)  # fmt: skip
     unit = {"Delta": " [b0]", "delta": " [b0]", "U": " [b0]", "B_d": " [b0]", "psi": " [rad]", "force": " [k_m0 b0]"}
     ax.set_ylabel(f"Poincare {name}{unit.get(name, '')}")
     ax.set_title(f"Bifurcation diagram, {result.model} backlash, {result.direction} sweep")
     leg = ax.legend(loc="best", markerscale=8, fontsize=8)
+    for handle, text in zip(leg.legend_handles, leg.get_texts()):  # the markerscale is for the dots
+        if text.get_text().startswith("still drifting") and hasattr(handle, "set_sizes"):
+            handle.set_sizes([16.0])
     leg.set_title("regime")
     if show_lyap:
         ax2.plot(om, result.lyapunov, ".-", ms=2, lw=0.6, color="k")
