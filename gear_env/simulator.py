@@ -139,6 +139,12 @@ def _check_params_rows(params: Any, n_omegas: int) -> list[GearParams]:
 
 
 def _check_state(state: Any) -> np.ndarray:
+    try:
+        cplx = np.iscomplexobj(state)
+    except (TypeError, ValueError):
+        cplx = False
+    if cplx:
+        raise ValueError("initial_state must be real numbers, got complex values")
     arr = np.asarray(state, dtype=float)
     if arr.shape != (K.NSTATE,):
         raise ValueError(f"initial_state must have shape (10,) [5 positions, 5 velocities], got {arr.shape}")
@@ -522,7 +528,7 @@ def simulate_batch(
 ) -> list[IntervalStats]:
     """Simulate independent gear pairs at several meshing frequencies in one SIMD call.
 
-    Each omega starts from the A10 initial state, runs ``transient`` mesh periods and then
+    Each omega starts from the A10 initial state (or from ``initial_states``), runs ``transient`` mesh periods and then
     ``periods`` recorded ones, exactly as ``GearSimulator(params, model, N, omega)`` followed by
     ``advance(transient)`` and ``advance(periods)`` would, bit for bit, but the systems are
     stepped together (``batch_kernels.integrate_stats_lanes``, 4 per AVX2 instruction): about
@@ -612,7 +618,13 @@ def _check_states_rows(states: Any) -> np.ndarray:
     """simulate_batch's ``initial_states``: one state (10,) or one per system (m, 10), all finite;
     a float array of shape (m, 10)."""
     try:
-        arr = np.array(states, dtype=float)
+        cplx = np.iscomplexobj(states)
+    except (TypeError, ValueError):  # ragged: refused below with the shape message
+        cplx = False
+    if cplx:
+        raise ValueError("initial_states must be real numbers, got complex values")
+    try:
+        arr = np.array(states, dtype=float, order="C")  # C order: the kernels' one compiled layout
     except (TypeError, ValueError) as exc:
         raise ValueError(
             f"initial_states must be numbers of shape (10,) or (n, 10), got {type(states).__name__}"

@@ -254,6 +254,15 @@ def test_simulate_batch_rejects_bad_initial_states():
         simulate_batch(1.0, initial_states=["a"] * 10)
     with pytest.raises(ValueError, match="initial_states has 2 entries but there are 3 systems"):
         simulate_batch([1.0, 1.2, 1.4], initial_states=np.stack([x0, x0]))
+    with pytest.raises(ValueError, match="initial_states must be real"):
+        simulate_batch(1.0, initial_states=x0 + 0j)
+    with pytest.raises(ValueError, match=r"initial_states must be numbers of shape \(10,\) or \(n, 10\)"):
+        simulate_batch(1.0, initial_states=[x0.tolist(), x0.tolist()[:5]])  # ragged
+    # a Fortran-ordered array gives the same result as a C-ordered one (it is copied to C order)
+    two = np.stack([x0, x0 + 0.01])
+    a = simulate_batch(1.0, periods=2, transient=0, steps_per_period=32, initial_states=np.asfortranarray(two))
+    b = simulate_batch(1.0, periods=2, transient=0, steps_per_period=32, initial_states=two)
+    np.testing.assert_array_equal(a[1].poincare, b[1].poincare)
 
 
 def test_basins_example_runs(tmp_path):

@@ -221,3 +221,54 @@ def test_integrate_split_steps_match_step_by_step():
     assert np.array_equal(x, xr) and np.array_equal(a, ar)
     assert st[K.ST_SPLITS] == splits and st[K.ST_STEPS] == periods * n
     assert st[K.ST_SEP_TIME] == pytest.approx(sep * dphi / w, rel=1e-12)
+
+
+def test_integrate_split_steps_dynamic_model_during_a_ramp():
+    """The re-entry after a split step, in the case where it matters: the dynamic model (whose
+    Newton guess is an extrapolation, except right after a split) while omega ramps (the step's
+    coefficients change every step). Reference: the single loop the kernels used to run, written
+    in Python from the same step functions (try the step; split it if Newton fails; guess;
+    next), compared bit for bit with both kernels."""
+    p = GearParams()
+    c = K.readonly(p.consts)
+    w0, w1, n, periods, max_iter = 2.3, 2.5, 32, 6, 1
+    x = default_initial_state(p, "dynamic")
+    a = np.zeros(5)
+    pc = np.zeros((periods, K.N_PC))
+    st = np.zeros(K.N_STATS)
+    assert K.integrate_stats(x, a, 0.0, w0, w1, periods, n, c, 1, pc, st, max_iter, 1e-10, True)[:2] == (K.OK, periods)
+    assert st[K.ST_SPLITS] >= 20
+    xo = default_initial_state(p, "dynamic")
+    ao = np.zeros(5)
+    rec = np.zeros((periods * n + 1, K.N_REC))
+    assert K.integrate_record(xo, ao, 0.0, w0, w1, periods, n, c, 1, rec, max_iter, 1e-10)[0] == K.OK
+
+    xr = default_initial_state(p, "dynamic")
+    ar = np.zeros(5)
+    K.start_step(xr, ar, 0.0, w0, c, 1, np.zeros(K.WORK_SIZE))
+    k = K.step_consts(c)
+    tab = K._excitation_table(0.0, n, c)
+    total = periods * n
+    dphi = 2 * np.pi / n
+    ww = (w1 * w1 - w0 * w0) / total
+    s = tuple(xr) + tuple(ar)
+    g = tuple(ar)
+    wa, hc = w0, K.step_coeffs(dphi / w0, k)
+    splits = 0
+    for j in range(total):
+        wb, hc = K.omega_step_t(j, wa, hc, w0, ww, dphi, k)
+        m = (j + 1) % n
+        ok, s1, F, *_ = K.newmark_try_t(s, g, tab[m, 0], tab[m, 1], tab[m, 2], wb, hc, k, 1, max_iter, 1e-10)
+        split = not ok
+        if split:
+            code, s1, F, *_ = K.split_step_t(s, dphi * j, dphi, wa, wb, c, k, 1, max_iter, 1e-10)
+            assert code == K.OK
+        splits += split
+        g = K.guess_t(s, s1, split)
+        s = s1
+        assert np.array_equal(rec[j + 1, :10], s[:10]), j
+        if m == 0:
+            assert np.array_equal(pc[(j + 1) // n - 1, :10], s[:10]) and pc[(j + 1) // n - 1, K.PC_FORCE] == F
+        wa = wb
+    assert splits == st[K.ST_SPLITS]
+    assert np.array_equal(x, s[:10]) and np.array_equal(a, s[10:]) and np.array_equal(xo, x)

@@ -159,3 +159,10 @@ def test_default_steps_per_period_rule_and_ramps():
     fixed = GearSimulator(None, "constant", 64, 1.0)
     fixed.advance(2, omega_end=0.2)
     assert fixed.steps_per_period == 64
+
+
+def test_complex_initial_state_is_refused():
+    from gear_env import simulate
+
+    with pytest.raises(ValueError, match="initial_state must be real numbers"):
+        simulate(1.0, periods=1, transient=0, initial_state=np.zeros(10) + 1j)

@@ -99,8 +99,9 @@ class SweepResult:
     def drift(self, name: str = "U") -> np.ndarray:
         """(n,) how much the recorded motion still changed during its window, per omega.
 
-        The Poincare samples of one column (default ``U``) are split into the first and the
-        second half of the recorded periods; the drift is the larger of the change of their
+        The Poincare samples of one column (default ``U``) are split into two halves of the
+        recorded periods (the last 2h samples, h a multiple of the period of a period-N point);
+        the drift is the larger of the change of their
         spread (max - min) and of their mean, over the U amplitude (half peak-to-peak; at least
         1e-3 b0). A settled periodic motion gives ~0 (its samples recur), a settled torus a few
         percent (its two halves sample the same invariant circle), a transient that is still
@@ -109,13 +110,18 @@ class SweepResult:
         time"). Not meaningful for chaotic motion, whose spread fluctuates. Dimensionless.
         """
         p = self.poincare_of(name)
-        h = p.shape[1] // 2
-        if h == 0:
-            return np.zeros(len(self))
-        a, b = p[:, :h], p[:, h:]
-        spread = np.abs((b.max(1) - b.min(1)) - (a.max(1) - a.min(1)))
-        mean = np.abs(b.mean(1) - a.mean(1))
-        return np.maximum(spread, mean) / np.maximum(self.amplitude["U"], 1e-3)
+        out = np.zeros(len(self))
+        for i in range(len(self)):
+            # halves of equal length; for a period-N point a multiple of N, so that each half
+            # holds whole cycles of the orbit (else the means differ by up to spread/h)
+            per = int(self.period[i]) if self.period[i] > 0 else 1
+            h = (p.shape[1] // 2) // per * per or p.shape[1] // 2
+            if h == 0:
+                continue
+            a, b = p[i, p.shape[1] - 2 * h : p.shape[1] - h], p[i, p.shape[1] - h :]
+            spread = abs((b.max() - b.min()) - (a.max() - a.min()))
+            out[i] = max(spread, abs(b.mean() - a.mean())) / max(float(self.amplitude["U"][i]), 1e-3)
+        return out
 
     def unsettled(self, threshold: float | None = None) -> np.ndarray:
         """Omegas of non-chaotic points whose :meth:`drift` exceeds ``threshold`` (default
