@@ -138,13 +138,19 @@ def _check_params_rows(params: Any, n_omegas: int) -> list[GearParams]:
     return list(params)
 
 
-def _check_state(state: Any) -> np.ndarray:
+def _refuse_complex(value: Any, name: str) -> None:
+    """ValueError if ``value`` holds complex numbers (float conversion would drop the imaginary
+    part with only a warning); ragged input passes, for the caller's shape check to refuse."""
     try:
-        cplx = np.iscomplexobj(state)
+        cplx = np.iscomplexobj(value)
     except (TypeError, ValueError):
         cplx = False
     if cplx:
-        raise ValueError("initial_state must be real numbers, got complex values")
+        raise ValueError(f"{name} must be real numbers, got complex values")
+
+
+def _check_state(state: Any) -> np.ndarray:
+    _refuse_complex(state, "initial_state")
     arr = np.asarray(state, dtype=float)
     if arr.shape != (K.NSTATE,):
         raise ValueError(f"initial_state must have shape (10,) [5 positions, 5 velocities], got {arr.shape}")
@@ -617,12 +623,7 @@ def simulate_batch(
 def _check_states_rows(states: Any) -> np.ndarray:
     """simulate_batch's ``initial_states``: one state (10,) or one per system (m, 10), all finite;
     a float array of shape (m, 10)."""
-    try:
-        cplx = np.iscomplexobj(states)
-    except (TypeError, ValueError):  # ragged: refused below with the shape message
-        cplx = False
-    if cplx:
-        raise ValueError("initial_states must be real numbers, got complex values")
+    _refuse_complex(states, "initial_states")
     try:
         arr = np.array(states, dtype=float, order="C")  # C order: the kernels' one compiled layout
     except (TypeError, ValueError) as exc:
