@@ -1,11 +1,22 @@
-"""Atomic file writing: a result is either the old file or the complete new one, never partial."""
+"""Safe file input and output.
+
+* Atomic writing: a result is either the old file or the complete new one, never partial, and only
+  regular files are ever replaced (never a device such as ``/dev/null``, a pipe or a directory).
+* :func:`check_outputs`: the command line's check, before any work, that no output is a device, a
+  directory, an input or another output.
+* :func:`read_json`: JSON input with its size, nesting depth and integer length bounded.
+* :class:`OutputLock`: one writer per output path at a time.
+"""
 
 from __future__ import annotations
 
+import json
 import os
+import stat
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import Any
 
 
 def _check_dir(path: Path) -> None:
@@ -23,6 +34,12 @@ def atomic_write(path: str | os.PathLike, writer: Callable[[str], None]) -> None
     ``path`` intact. Errors are re-raised with the target path in the message.
     """
     target = Path(path)
+    if target.is_symlink():  # write through a link to a regular file, keep the link
+        target = Path(os.path.realpath(target))
+    try:
+        check_regular_target(target)
+    except ValueError as exc:
+        raise OSError(f"refusing to write {str(path)!r}: {exc}") from None
     _check_dir(target)
     try:  # a read-only mount (EROFS, even for root) or a full inode table fails here
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or ".")
@@ -38,6 +55,9 @@ def atomic_write(path: str | os.PathLike, writer: Callable[[str], None]) -> None
     except OSError as exc:
         _unlink(tmp)
         raise OSError(f"could not write {str(target)!r}: {exc}") from exc
+    except RuntimeError as exc:  # e.g. "NetCDF: HDF error" from a library writer on a full disk
+        _unlink(tmp)
+        raise OSError(f"could not write {str(target)!r}: {type(exc).__name__}: {exc}") from exc
     except BaseException:
         _unlink(tmp)
         raise
@@ -78,3 +98,210 @@ def _unlink(p: str) -> None:
         os.unlink(p)
     except OSError:
         pass
+
+
+# --------------------------------------------------------------------------------------------------
+# output and input checks (used by the command line before any work starts)
+# --------------------------------------------------------------------------------------------------
+def check_regular_target(path: str | os.PathLike, what: str = "output") -> None:
+    """Raise ``ValueError`` unless ``path`` is absent or a regular file (after following symlinks).
+
+    Devices (``/dev/null``, ``/dev/full``), directories, pipes and sockets are refused: an atomic
+    write renames a new regular file over its target, which would replace the node itself."""
+    p = os.fspath(path)
+    if not p:
+        raise ValueError(f"{what}: empty path")
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise ValueError(f"{what} {p!r}: cannot inspect it ({exc.strerror})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise ValueError(f"{what} {p!r} is a directory; give a file name")
+    if not stat.S_ISREG(st.st_mode):
+        raise ValueError(
+            f"{what} {p!r} is not a regular file (a device, pipe or socket); gear-env writes only regular files"
+        )
+
+
+def _identity(path: str) -> tuple[Any, ...]:
+    """What makes two paths the same file: (device, inode) if it exists, else the resolved path."""
+    try:
+        st = os.stat(path)
+        return ("inode", st.st_dev, st.st_ino)
+    except OSError:
+        return ("path", os.path.realpath(path))
+
+
+def check_outputs(outputs: Mapping[str, Any], inputs: Mapping[str, Any] | None = None) -> None:
+    """Check the output paths of a command before it starts (``ValueError`` naming the option).
+
+    ``outputs`` and ``inputs`` map an option name (``"--json"``) to a path or None (unused).
+    Refused: an output that is not a regular file (see :func:`check_regular_target`), whose folder
+    does not exist, that is also an input, or that is another output."""
+    seen: dict[tuple[Any, ...], str] = {}
+    for name, path in (inputs or {}).items():
+        for one in path if isinstance(path, (list, tuple)) else [path]:
+            if one is not None and os.path.exists(os.fspath(one)) and not os.path.isdir(os.fspath(one)):
+                seen.setdefault(_identity(os.fspath(one)), f"the input {name} {os.fspath(one)!r}")
+    for name, path in outputs.items():
+        if path is None:
+            continue
+        p = os.fspath(path)
+        check_regular_target(p, name)
+        d = os.path.dirname(os.path.abspath(p))
+        if not os.path.isdir(d):
+            raise ValueError(f"{name} {p!r}: output folder {d!r} does not exist")
+        key = _identity(p)
+        if key in seen:
+            raise ValueError(f"{name} {p!r} is the same file as {seen[key]}; choose another path")
+        seen[key] = f"the output {name} {p!r}"
+
+
+# --------------------------------------------------------------------------------------------------
+# bounded JSON input
+# --------------------------------------------------------------------------------------------------
+MAX_JSON_BYTES = 16 * 1024 * 1024
+"""Largest JSON (or schedule) input file read, in bytes (16 MiB)."""
+MAX_JSON_DEPTH = 64
+"""Deepest nesting of arrays/objects accepted in a JSON input."""
+MAX_INT_DIGITS = 40
+"""Longest integer literal accepted in a JSON input (digits)."""
+
+
+def read_limited(path: str | os.PathLike, what: str, max_bytes: int = MAX_JSON_BYTES) -> bytes:
+    """The bytes of a regular file of at most ``max_bytes`` (checked before reading); ``ValueError`` otherwise."""
+    p = os.fspath(path)
+    try:
+        with open(p, "rb") as fh:
+            st = os.fstat(fh.fileno())
+            if not stat.S_ISREG(st.st_mode):
+                raise ValueError(f"{what} {p!r} is not a regular file")
+            if st.st_size > max_bytes:
+                raise ValueError(f"{what} {p!r} is {st.st_size:,} bytes; the limit is {max_bytes:,} bytes")
+            data = fh.read(max_bytes + 1)
+    except FileNotFoundError:
+        raise ValueError(f"{what} {p!r} does not exist") from None
+    except IsADirectoryError:
+        raise ValueError(f"{what} {p!r} is a directory, expected a file") from None
+    except OSError as exc:
+        raise ValueError(f"{what} {p!r}: cannot read it ({exc.strerror or exc})") from None
+    if len(data) > max_bytes:
+        raise ValueError(f"{what} {p!r} is larger than the limit of {max_bytes:,} bytes")
+    return data
+
+
+def _json_depth(text: str) -> int:
+    """Deepest nesting of ``[``/``{`` in JSON text (brackets inside strings ignored)."""
+    depth = best = 0
+    in_str = esc = False
+    for ch in text:
+        if in_str:
+            if esc:
+                esc = False
+            elif ch == "\\":
+                esc = True
+            elif ch == '"':
+                in_str = False
+        elif ch == '"':
+            in_str = True
+        elif ch in "[{":
+            depth += 1
+            if depth > best:
+                best = depth
+        elif ch in "]}":
+            depth -= 1
+    return best
+
+
+def parse_json_text(text: str, where: str, max_depth: int = MAX_JSON_DEPTH) -> Any:
+    """``json.loads`` with the nesting depth and integer length bounded; ``ValueError`` naming ``where``."""
+    if _json_depth(text) > max_depth:
+        raise ValueError(f"{where} is nested deeper than {max_depth} levels")
+
+    def _int(s: str) -> int:
+        if len(s.lstrip("-")) > MAX_INT_DIGITS:
+            raise ValueError(f"{where}: an integer of {len(s)} digits (the limit is {MAX_INT_DIGITS})")
+        return int(s)
+
+    try:
+        return json.loads(text, parse_int=_int)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{where} is not valid JSON: {exc}") from None
+    except RecursionError:  # pragma: no cover - the depth check comes first
+        raise ValueError(f"{where} is nested too deeply") from None
+
+
+def read_json(path: str | os.PathLike, what: str, max_bytes: int = MAX_JSON_BYTES) -> Any:
+    """Read a JSON file with its size, nesting depth and integer length bounded (``ValueError``)."""
+    raw = read_limited(path, what, max_bytes)
+    try:
+        text = raw.decode("utf-8-sig")  # -sig: tolerate a byte-order mark
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{what} {os.fspath(path)!r} is not UTF-8 text: {exc}") from None
+    return parse_json_text(text, f"{what} {os.fspath(path)!r}")
+
+
+# --------------------------------------------------------------------------------------------------
+# one writer at a time
+# --------------------------------------------------------------------------------------------------
+class OutputLock:
+    """An exclusive, non-blocking lock on an output path (``fcntl.flock`` on ``.<name>.lock`` beside it).
+
+    A second process that asks for the same output gets a ``ValueError`` at once. The lock dies
+    with its process (also on kill -9), so a crashed run never leaves a stale lock behind; the lock
+    file is removed on :meth:`release`.
+    """
+
+    def __init__(self, path: str | os.PathLike, what: str = "output"):
+        p = Path(os.path.abspath(os.fspath(path)))
+        self.target = p
+        self.path = p.with_name(f".{p.name}.lock")
+        self.what = what
+        self._fd: int | None = None
+
+    def acquire(self) -> OutputLock:
+        import fcntl
+
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                try:
+                    holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+                finally:
+                    os.close(fd)
+                raise ValueError(
+                    f"{self.what} {str(self.target)!r} is being written by another process (pid {holder}); "
+                    "wait for it to finish or choose another path"
+                ) from None
+            # the file may have been removed by a releasing holder between open and flock: retry
+            try:
+                same = os.path.samestat(os.fstat(fd), os.stat(self.path))
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        self._fd = fd
+        return self
+
+    def release(self) -> None:
+        if self._fd is None:
+            return
+        try:
+            os.unlink(self.path)
+        except OSError:
+            pass
+        os.close(self._fd)
+        self._fd = None
+
+    def __enter__(self) -> OutputLock:
+        return self.acquire()
+
+    def __exit__(self, *exc: Any) -> None:
+        self.release()

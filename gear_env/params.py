@@ -315,3 +315,27 @@ class GearParams:
         if unknown:
             raise ValueError(f"unknown GearParams field(s) {unknown}; valid fields: {valid}")
         return cls(**data)
+
+
+def _checked_init(init: Any) -> Any:
+    """Wrap the dataclass ``__init__`` so that unknown or surplus arguments raise ``ValueError``
+    (naming them and the valid fields) instead of Python's ``TypeError``, as every entry point does."""
+    import functools
+
+    @functools.wraps(init)
+    def __init__(self: GearParams, *args: Any, **kwargs: Any) -> None:
+        valid = [f.name for f in fields(GearParams) if f.init]
+        unknown = sorted(set(kwargs) - set(valid))
+        if unknown:
+            raise ValueError(f"unknown GearParams field(s) {unknown}; valid fields: {valid}")
+        if len(args) > len(valid):
+            raise ValueError(f"GearParams takes at most {len(valid)} positional values, got {len(args)}")
+        twice = sorted(set(valid[: len(args)]) & set(kwargs))
+        if twice:
+            raise ValueError(f"GearParams field(s) {twice} given both by position and by name")
+        init(self, *args, **kwargs)
+
+    return __init__
+
+
+GearParams.__init__ = _checked_init(GearParams.__init__)  # type: ignore[method-assign]

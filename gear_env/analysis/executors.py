@@ -4,7 +4,8 @@
   forkserver is unavailable): no fork of a process holding threads or numba state. Before the
   pool starts, :func:`warm_numba_cache` compiles (or loads) every kernel a sweep uses in the
   parent, so the workers only *read* the on-disk numba cache and never race to write it; each
-  worker loads the kernels once in its initializer.
+  worker loads the kernels once in its initializer, and ends itself when the main process is gone
+  (also after a kill -9; :mod:`.lifeline`).
 * ``dask`` - ``dask.distributed.Client(address).get_executor()``; the workers must be able to
   import ``gear_env`` (same installation). The client is closed afterwards, the cluster is not.
 * an ``Executor`` instance - used as given and not shut down.
@@ -13,6 +14,7 @@
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 from collections.abc import Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor
 from contextlib import contextmanager
@@ -42,7 +44,11 @@ def warm_numba_cache() -> None:
     _WARM = True
 
 
-def _worker_init() -> None:
+def _worker_init(main_pid: int | None = None) -> None:
+    if main_pid is not None:  # end with the main process, also when it is killed with SIGKILL
+        from .lifeline import exit_with_parent
+
+        exit_with_parent(main_pid)
     warm_numba_cache()
 
 
@@ -55,7 +61,7 @@ def local_pool(workers: int) -> ProcessPoolExecutor:
     warm_numba_cache()
     methods = mp.get_all_start_methods()
     ctx = mp.get_context("forkserver" if "forkserver" in methods else "spawn")
-    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init)
+    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init, initargs=(os.getpid(),))
 
 
 def start_workers(ex: Executor, workers: int) -> None:

@@ -292,6 +292,7 @@ def sweep(
     max_period: int = DEFAULT_MAX_PERIOD,
     lyap_tol: float = DEFAULT_LYAP_TOL,
     max_extend: int = 4,
+    keep_checkpoint: bool = False,
     _on_point: Callable[[int], None] | None = None,
 ) -> SweepResult:
     """Sweep the meshing frequency and record the steady motion at each omega.
@@ -315,13 +316,15 @@ def sweep(
         progress: show a progress bar on stderr (tqdm if installed).
         checkpoint: file to save progress to (atomically, after every chunk, or every point at
             most every 2 s in a serial sweep, and on interruption); if it exists and matches
-            this sweep, finished points are reused. Deleted after success.
+            this sweep, finished points are reused. Deleted after success unless ``keep_checkpoint``.
         scheduler: Dask scheduler address (``tcp://host:port``) for ``executor="dask"``.
         chunks: number of chunks of a parallel sweep (default 8 per worker).
         adaptive_steps: with a fixed ``steps_per_period``, use :func:`steps_for` with ``adaptive=True``.
         coarse_periods: mesh periods per grid step of the coarse ramp that starts the chunks.
         tol, max_period, lyap_tol: classification settings (:func:`classify_motion`).
         max_extend: extra windows of ``periods`` used to confirm a label.
+        keep_checkpoint: write the checkpoint complete and keep it after success, for a caller
+            that deletes it only once the result is safely saved (the command line does).
 
     Returns:
         :class:`SweepResult`.
@@ -338,7 +341,7 @@ def sweep(
     coarse_periods = check_count(coarse_periods, "coarse_periods", 1)
     parallel = workers > 1 or executor is not None
     _execute([job], parallel, workers, executor, scheduler, chunks, coarse_periods, progress)
-    return _finish(job, parallel, coarse_periods)
+    return _finish(job, parallel, coarse_periods, keep_checkpoint=bool(keep_checkpoint))
 
 
 def sweep_many(
@@ -449,7 +452,7 @@ def _prepare(
     return _Job(cfg, w, order, ws, ck, dict(ck.done) if ck else {}, on_point)
 
 
-def _finish(job: _Job, parallel: bool, coarse_periods: int) -> SweepResult:
+def _finish(job: _Job, parallel: bool, coarse_periods: int, keep_checkpoint: bool = False) -> SweepResult:
     cfg = job.cfg
     points: list[Any] = [None] * len(job.w)
     for i, idx in enumerate(job.order):
@@ -461,7 +464,10 @@ def _finish(job: _Job, parallel: bool, coarse_periods: int) -> SweepResult:
     }  # fmt: skip
     res = assemble(job.w, points, cfg.model, cfg.direction, cfg.params, cfg.transient, cfg.periods, cfg.lyapunov, meta)  # type: ignore[arg-type]
     if job.ck:
-        job.ck.remove()
+        if keep_checkpoint:
+            job.ck.save(force=True)  # complete: every point, for the caller to delete once it saved the result
+        else:
+            job.ck.remove()
     return res
 
 

@@ -4,34 +4,44 @@ from __future__ import annotations
 
 import argparse
 
+from .common import add_model_options, check_memory, check_outputs, float_range, int_range, params_from_args
+
+MAX_PERIODS = 10_000_000
+"""Upper bound of ``--periods`` and ``--transient`` (the memory estimate usually binds first)."""
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "simulate",
         help="simulate at one meshing frequency",
-        description="Simulate the gear pair at a fixed dimensionless meshing frequency omega = Omega/omega_n.",
+        description="Simulate the gear pair at a fixed dimensionless meshing frequency omega = Omega/omega_n; "
+        "print the amplitudes and the motion class read from the Poincare section.",
     )
-    p.add_argument("--omega", type=float, required=True, help="meshing frequency Omega/omega_n (> 0)")
-    p.add_argument("--model", default="dynamic", choices=["constant", "dynamic"], help="backlash model")
-    p.add_argument("--periods", type=int, default=200, help="mesh periods recorded (default 200)")
-    p.add_argument("--transient", type=int, default=300, help="mesh periods discarded first (default 300)")
-    p.add_argument("--kappa", type=float, default=None, help="mesh-stiffness harmonic amplitude (default 0.2)")
     p.add_argument(
-        "--steps-per-period",
-        type=int,
-        default=None,
-        help="Newmark steps per mesh period (default 192, more below omega 0.27)",
+        "--omega", type=float_range(0.0, 1e3, lo_open=True), required=True, help="meshing frequency Omega/omega_n (> 0)"
     )
+    p.add_argument("--periods", type=int_range(1, MAX_PERIODS), default=200, help="mesh periods recorded (default 200)")
+    p.add_argument(
+        "--transient", type=int_range(0, MAX_PERIODS), default=300, help="mesh periods discarded first (default 300)"
+    )
+    add_model_options(p)
     p.add_argument("--json", metavar="PATH", help="write the summary (amplitudes, Poincare points) as JSON")
     p.add_argument("--plot", metavar="PATH", help="write a PNG: time history, phase portrait, Poincare map")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..params import GearParams
-    from ..simulator import simulate
+    from ..analysis import classify_motion
+    from ..simulator import default_steps_per_period, simulate
+    from .common import simulate_bytes
 
-    params = GearParams() if args.kappa is None else GearParams(kappa=args.kappa)
+    params = params_from_args(args)
+    check_outputs(args, ("json", "plot"))
+    nsp = args.steps_per_period or default_steps_per_period(args.omega)
+    check_memory(
+        simulate_bytes(args.periods, args.transient, nsp),
+        f"--periods {args.periods} --transient {args.transient} at {nsp} steps/period",
+    )
     traj = simulate(
         args.omega,
         model=args.model,
@@ -42,11 +52,13 @@ def run(args: argparse.Namespace) -> int:
     )
     n = traj.steps_per_period
     d = traj.to_dict()
+    motion = classify_motion(traj.poincare_rows[:, :10]).label if args.periods >= 2 else "(needs --periods >= 2)"
     print(
         f"omega={args.omega:g} model={args.model} periods={args.periods} transient={args.transient} "
         f"steps/period={n}\n"
         f"amplitude U={d['amplitude_u']:.6g}  Delta={d['amplitude_delta']:.6g}  b_d={d['amplitude_bd']:.6g}  "
-        f"psi={d['amplitude_psi']:.3g} rad  contact loss={d['contact_loss_fraction']:.3f}"
+        f"psi={d['amplitude_psi']:.3g} rad  contact loss={d['contact_loss_fraction']:.3f}\n"
+        f"motion: {motion} (from the Poincare section; `gear-env sweep` adds the Lyapunov exponent)"
     )
     if args.json:
         traj.to_json(args.json)

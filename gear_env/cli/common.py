@@ -1,0 +1,143 @@
+"""Helpers shared by the ``gear-env`` sub-commands: bounded number options, the model and
+parameter options, output checks and memory estimates (every check runs before any work)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from collections.abc import Callable
+from typing import Any
+
+INT_MAX = 2**62
+"""No integer option accepts more (fits an int64 with room to spare)."""
+
+
+def int_range(lo: int, hi: int = INT_MAX) -> Callable[[str], int]:
+    """An argparse ``type`` for an integer in [lo, hi]; argparse names the flag in its message."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text.strip())
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer in [{lo}, {hi}], got {text!r}") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"must be an integer in [{lo}, {hi}], got {text}")
+        return v
+
+    parse.__name__ = "integer"
+    return parse
+
+
+def float_range(lo: float = -math.inf, hi: float = math.inf, lo_open: bool = False) -> Callable[[str], float]:
+    """An argparse ``type`` for a finite float in [lo, hi] (``(lo, hi]`` with ``lo_open``)."""
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        left = "(" if lo_open else "["
+        if not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo):
+            raise argparse.ArgumentTypeError(f"must be a finite number in {left}{lo:g}, {hi:g}], got {text}")
+        return v
+
+    parse.__name__ = "number"
+    return parse
+
+
+# --------------------------------------------------------------------------------------------------
+# the model and its parameters (simulate, sweep, stability)
+# --------------------------------------------------------------------------------------------------
+def add_model_options(p: argparse.ArgumentParser, steps: bool = True) -> None:
+    """``--model``, ``--kappa`` and (with ``steps``) ``--steps-per-period``; read back by :func:`params_from_args`."""
+    p.add_argument("--model", default="dynamic", choices=["constant", "dynamic"], help="backlash model")
+    p.add_argument("--kappa", type=float, default=None, help="mesh-stiffness harmonic amplitude (default 0.2)")
+    if steps:
+        p.add_argument(
+            "--steps-per-period",
+            type=int_range(8, 100_000),
+            default=None,
+            help="Newmark steps per mesh period, 8-100000 (default 192, more below omega 0.27)",
+        )
+
+
+def params_from_args(args: argparse.Namespace) -> Any:
+    """The :class:`~gear_env.params.GearParams` the model options describe (a ValueError names the field)."""
+    from ..params import GearParams
+
+    return GearParams() if args.kappa is None else GearParams(kappa=args.kappa)
+
+
+# --------------------------------------------------------------------------------------------------
+# outputs
+# --------------------------------------------------------------------------------------------------
+def check_outputs(args: argparse.Namespace, outputs: tuple[str, ...], inputs: tuple[str, ...] = ()) -> None:
+    """Refuse (ValueError, exit 2) outputs that are devices/directories, that equal an input or each other.
+
+    ``outputs``/``inputs`` are attribute names of ``args`` (``"json"`` -> option ``--json``)."""
+    from ..io import check_outputs as _check
+
+    def flag(name: str) -> str:
+        return "--" + name.replace("_", "-")
+
+    _check({flag(n): getattr(args, n, None) for n in outputs}, {flag(n): getattr(args, n, None) for n in inputs})
+
+
+# --------------------------------------------------------------------------------------------------
+# memory
+# --------------------------------------------------------------------------------------------------
+def available_memory() -> int | None:
+    """Bytes of memory available to a new allocation (``MemAvailable``), or None if unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
+        return None
+
+
+def check_memory(nbytes: float, what: str, fraction: float = 0.8) -> None:
+    """Raise ValueError if an allocation of ``nbytes`` would not fit in ``fraction`` of the free memory.
+
+    ``what`` names the options responsible (e.g. ``"--periods 1000000 at 192 steps/period"``)."""
+    free = available_memory()
+    if free is None:
+        return
+    if nbytes > fraction * free:
+        raise ValueError(
+            f"{what} needs about {nbytes / 2**30:.1f} GiB of memory, more than the {fraction * free / 2**30:.1f} GiB "
+            "available; ask for less"
+        )
+
+
+def simulate_bytes(periods: int, transient: int, steps_per_period: int) -> float:
+    """Estimated bytes a ``simulate`` run allocates: the recorded time series plus the Poincare rows."""
+    from ..kernels import N_PC, N_REC
+
+    return 8.0 * ((periods * steps_per_period + 1) * N_REC + (periods + transient) * N_PC)
+
+
+def sweep_bytes(points: int, periods: int) -> float:
+    """Estimated bytes of a sweep's results: per point its Poincare rows, statistics and state."""
+    from ..kernels import N_PC, N_STATS
+
+    return 8.0 * points * (4 * periods * N_PC + N_STATS + 64)
+
+
+__all__ = [
+    "add_model_options",
+    "available_memory",
+    "check_memory",
+    "check_outputs",
+    "float_range",
+    "int_range",
+    "params_from_args",
+    "simulate_bytes",
+    "sweep_bytes",
+]
