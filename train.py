@@ -8,9 +8,11 @@ Example (the run reported in docs/RESULTS.md)::
 See docs/TRAINING.md for every option, resuming, and evaluation.
 """
 
+import os
 import sys
 
-from agents.ppo import main
+from gear_env.cli.train import main
 
 if __name__ == "__main__":
+    os.environ.setdefault("MPLBACKEND", "Agg")
     sys.exit(main())

@@ -5,7 +5,10 @@
 which ``gear-env evaluate --policy SPEC`` loads them all.
 
 Every policy has the stable-baselines3 interface
-``predict(observation, state=None, episode_start=None, deterministic=True) -> (actions, state)``.
+``predict(observation, state=None, episode_start=None, deterministic=True) -> (actions, state)``,
+written once in :class:`agents.policy.BasePolicy` (users of policies depend on the
+:class:`agents.policy.Policy` protocol). The command line (argument parsing) is in
+:mod:`gear_env.cli.train`; this package holds no argparse code.
 """
 
 from __future__ import annotations

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from .envs import control_parameters
+from .policy import BasePolicy
 
 OBS_OMEGA = 0
 OBS_DEFECT = 5  # log1p(periodicity defect / defect_scale)
@@ -29,7 +30,7 @@ OBS_DRIVE_IMPACTS = 8  # drive-side re-impacts per mesh period
 OBS_BACK_IMPACTS = 9  # back-side impacts per mesh period
 
 
-class ScriptedPolicy:
+class ScriptedPolicy(BasePolicy):
     """Base class: converts a desired omega per environment into actions for the configured mode.
 
     Subclasses implement ``_targets(omega, obs, state) -> (target omega (n,), state)``.
@@ -63,27 +64,19 @@ class ScriptedPolicy:
             a = 2.0 * (target - self.omega_min) / (self.omega_max - self.omega_min) - 1.0
         return np.clip(a, -1.0, 1.0)
 
-    # ---- SB3 interface ----------------------------------------------------------------------------
-    def predict(
-        self,
-        observation: np.ndarray,
-        state: Any = None,
-        episode_start: np.ndarray | None = None,
-        deterministic: bool = True,
+    # ---- the policy interface (BasePolicy.predict wraps this) -------------------------------------
+    def predict_batch(
+        self, observations: np.ndarray, state: Any, episode_start: np.ndarray | None, deterministic: bool
     ) -> tuple[np.ndarray, Any]:
-        """Actions for the observation(s); ``state`` carries per-environment memory."""
-        obs = np.asarray(observation, dtype=np.float64)
-        single = obs.ndim == 1
-        if single:
-            obs = obs[None, :]
-        if obs.ndim != 2 or not np.all(np.isfinite(obs)):
+        """Actions (n, 1) for observations (n, obs_dim); ``state`` carries per-environment memory."""
+        obs = np.asarray(observations, dtype=np.float64)
+        if not np.all(np.isfinite(obs)):
             raise ValueError(f"observation must be a finite array of shape (obs_dim,) or (n, obs_dim), got {obs.shape}")
         n = obs.shape[0]
         state = self._state(state, n, episode_start)
         omega = self.omega_from_obs(obs)
         target, state = self._targets(omega, obs, state)
-        a = self.action_to(omega, target).astype(np.float32).reshape(n, 1)
-        return (a[0] if single else a), state
+        return self.action_to(omega, target).astype(np.float32).reshape(n, 1), state
 
     def _state(self, state: Any, n: int, episode_start: np.ndarray | None) -> Any:
         """Fresh state when None or of another batch size; reset rows where an episode starts."""
@@ -104,9 +97,6 @@ class ScriptedPolicy:
 
     def _targets(self, omega: np.ndarray, obs: np.ndarray, state: dict) -> tuple[np.ndarray, dict]:
         raise NotImplementedError
-
-    def __repr__(self) -> str:
-        return f"{type(self).__name__}({self.name!r})"
 
 
 class ConstantSpeed(ScriptedPolicy):

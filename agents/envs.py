@@ -80,15 +80,12 @@ def load_config_file(path: str | os.PathLike) -> dict[str, Any]:
     """Read an environment config JSON file (a flat dict of GearSpeedConfig fields).
 
     A run folder's config.json is accepted too (its ``env_config`` is used)."""
+    from gear_env.io import read_json
+
     p = Path(path)
     if p.is_dir():
         p = p / "config.json"
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError as exc:
-        raise ValueError(f"--config: file {str(path)!r} does not exist") from exc
-    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"--config: cannot read {str(path)!r} as JSON: {exc}") from exc
+    data = read_json(p, "--config", max_bytes=1024 * 1024)  # size, depth and integer length bounded
     if isinstance(data, dict) and "env_config" in data and "format" in data:
         data = data["env_config"]
     if not isinstance(data, dict):

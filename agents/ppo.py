@@ -1,6 +1,7 @@
-"""PPO training on GearSpeed-v0: set-up, callbacks, run folder, resume, and the command line.
+"""PPO training on GearSpeed-v0: options, callbacks, run folder and resume.
 
-``python train.py ...`` and ``gear-env train ...`` run :func:`main` / :func:`train` here.
+``python train.py ...`` and ``gear-env train ...`` parse their arguments in
+:mod:`gear_env.cli.train` and call :func:`train` here.
 
 What a run does (see :mod:`agents.runs` for the folder layout):
 
@@ -18,14 +19,12 @@ What a run does (see :mod:`agents.runs` for the folder layout):
 
 from __future__ import annotations
 
-import argparse
 import importlib.util
 import json
 import math
-import os
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,7 +33,7 @@ import numpy as np
 
 from gear_env.io import atomic_write_text
 
-from .envs import GEAR_ENV_ID, config_to_dict, load_config_file, make_config, make_sb3_vec_env
+from .envs import GEAR_ENV_ID, config_to_dict, make_config, make_sb3_vec_env
 from .runs import RunFolder, RunFolderError, check_space_compatible, space_to_dict, versions
 
 EVAL_SEED_OFFSET = 1_000_003
@@ -62,6 +61,64 @@ PPO_DEFAULTS: dict[str, Any] = {
 """PPO hyper-parameters (SB3 names; ``net_arch`` and ``log_std_init`` go to policy_kwargs)."""
 
 
+MAX_NUM_ENVS = 1024
+"""Most sub-environments of one training run."""
+MAX_TIMESTEPS = 10**12
+"""Most environment steps of one training run."""
+
+
+def _number(
+    params: Mapping[str, Any], key: str, lo: float, hi: float, lo_open: bool = False, hi_open: bool = False
+) -> None:
+    v = params[key]
+    ok = not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+    ok = ok and (v > lo if lo_open else v >= lo) and (v < hi if hi_open else v <= hi)
+    if not ok:
+        rng = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+        raise ValueError(f"PPO hyper-parameter {key} must be a finite number in {rng}, got {v!r}")
+
+
+def _integer(params: Mapping[str, Any], key: str, lo: int, hi: int) -> None:
+    v = params[key]
+    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+        raise ValueError(f"PPO hyper-parameter {key} must be an integer in [{lo}, {hi}], got {v!r}")
+
+
+def validate_ppo(params: Mapping[str, Any], num_envs: int = 1) -> None:
+    """Check PPO hyper-parameters (SB3 names) before any training; ``ValueError`` naming the key and range.
+
+    ``params`` holds every key of :data:`PPO_DEFAULTS`; ``num_envs`` bounds ``batch_size`` (at most one
+    rollout of ``n_steps * num_envs`` steps)."""
+    unknown = set(params) - set(PPO_DEFAULTS)
+    if unknown:
+        raise ValueError(f"unknown PPO hyper-parameter(s) {sorted(unknown)}; valid: {sorted(PPO_DEFAULTS)}")
+    _number(params, "learning_rate", 0.0, 1.0, lo_open=True)
+    _integer(params, "n_steps", 1, 1_000_000)
+    _integer(params, "batch_size", 2, max(2, params["n_steps"] * num_envs))
+    _integer(params, "n_epochs", 1, 10_000)
+    _number(params, "gamma", 0.0, 1.0)
+    _number(params, "gae_lambda", 0.0, 1.0)
+    _number(params, "clip_range", 0.0, 10.0, lo_open=True)
+    _number(params, "ent_coef", 0.0, 100.0)
+    _number(params, "vf_coef", 0.0, 100.0)
+    _number(params, "max_grad_norm", 0.0, 1e6, lo_open=True)
+    _number(params, "log_std_init", -20.0, 5.0)
+    if params["n_steps"] * num_envs < 2:
+        raise ValueError(f"PPO needs n_steps * num_envs >= 2, got {params['n_steps']} * {num_envs}")
+    arch = params["net_arch"]
+    if (
+        not isinstance(arch, (list, tuple))
+        or len(arch) > 16
+        or any(isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 4096 for n in arch)
+    ):
+        raise ValueError(
+            f"PPO hyper-parameter net_arch must be a list of at most 16 layer sizes in [1, 4096], got {arch!r}"
+        )
+    if not isinstance(params["use_sde"], bool):
+        raise ValueError(f"PPO hyper-parameter use_sde must be true or false, got {params['use_sde']!r}")
+    _integer(params, "sde_sample_freq", -1, 1_000_000)
+
+
 @dataclass(frozen=True)
 class TrainOptions:
     """Options of one training run (validated in ``__post_init__``).
@@ -87,17 +144,21 @@ class TrainOptions:
     verbose: int = 1
 
     def __post_init__(self) -> None:
-        for name, lo in (("timesteps", 1), ("num_envs", 1), ("eval_episodes", 1), ("keep_checkpoints", 1)):
+        bounds = {
+            "timesteps": (1, MAX_TIMESTEPS),
+            "num_envs": (1, MAX_NUM_ENVS),
+            "eval_episodes": (1, 100_000),
+            "keep_checkpoints": (1, 100_000),
+            "eval_freq": (0, MAX_TIMESTEPS),
+            "checkpoint_freq": (0, MAX_TIMESTEPS),
+            "seed": (0, 2**32 - 1),
+        }
+        for name, (lo, hi) in bounds.items():
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-                raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
-        for name in ("eval_freq", "checkpoint_freq", "seed"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                raise ValueError(f"{name} must be an integer >= 0 (0 = off for frequencies), got {v!r}")
-        unknown = set(self.ppo) - set(PPO_DEFAULTS)
-        if unknown:
-            raise ValueError(f"unknown PPO hyper-parameter(s) {sorted(unknown)}; valid: {sorted(PPO_DEFAULTS)}")
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                off = " (0 = off)" if name.endswith("_freq") else ""
+                raise ValueError(f"{name} must be an integer in [{lo}, {hi}]{off}, got {v!r}")
+        validate_ppo(self.ppo_params(), self.num_envs)
 
     def ppo_params(self) -> dict[str, Any]:
         """The PPO hyper-parameters with the defaults filled in."""
@@ -140,7 +201,7 @@ def _callbacks(run: RunFolder, opts: TrainOptions, eval_venv: Any, state: dict[s
             if row["return_mean"] > state.get("best_return", -math.inf):
                 state["best_return"] = row["return_mean"]
                 run.save_model(
-                    self.model, self.model.get_env(), run.path / "best_model.zip", run.path / "best_vecnormalize.pkl"
+                    self.model, self.model.get_env(), run.path / "best_model.zip", run.path / "best_vecnormalize.npz"
                 )
             run.write_metrics(state["rows"], _summary(state, self.model.num_timesteps, opts))
             if opts.verbose:
@@ -227,8 +288,21 @@ def _summary(state: dict[str, Any], steps: int, opts: TrainOptions) -> dict[str,
 
 
 # --------------------------------------------------------------------------------------------------
-# training
+# training, in parts: where to start, the environments, the model, the learning, the end
 # --------------------------------------------------------------------------------------------------
+@dataclass
+class _Start:
+    """Where a run starts: from scratch (steps 0) or from its last checkpoint."""
+
+    steps: int = 0
+    model_path: Path | None = None
+    vecnorm_path: Path | None = None
+    rows: list[dict[str, Any]] = field(default_factory=list)
+    wall_before: float = 0.0
+    sessions: int = 1
+    stored: dict[str, Any] = field(default_factory=dict)
+
+
 def _interrupt_on_sigterm() -> Any:
     """Make SIGTERM behave like Ctrl-C during training (so `kill PID` also leaves a checkpoint).
 
@@ -269,286 +343,198 @@ def _check_resume(stored: Mapping[str, Any], opts: TrainOptions, env_config: dic
         )
 
 
+def _start_point(run: RunFolder, opts: TrainOptions, env_config: dict[str, Any]) -> _Start:
+    """Check the run folder and find where to start (creates it, or clears it with ``overwrite``)."""
+    if not opts.resume:
+        if run.config_path.exists() and not opts.overwrite:
+            raise RunFolderError(
+                f"{str(run.path)!r} already holds a run; use --resume to continue it, --overwrite to replace it, "
+                f"or choose another --out"
+            )
+        if opts.overwrite and run.path.is_dir():
+            n = run.clear()  # no stale checkpoint may outlive the run it belonged to
+            if n and opts.verbose:
+                print(f"--overwrite: removed {n} file(s) of the earlier run in {run.path}", flush=True)
+        run.create()
+        return _Start()
+    stored = run.read_config()
+    _check_resume(stored, opts, env_config, run.path)
+    steps, mpath, vpath = run.latest_checkpoint()
+    old = run.read_metrics()
+    rows = [r for r in old.get("evaluations", []) if r.get("timesteps", 0) <= steps]
+    summ = old.get("summary", {})
+    wall_before = float(summ.get("wall_seconds", 0.0)) if summ.get("timesteps", 0) >= steps else 0.0
+    if steps >= opts.timesteps:
+        raise ValueError(
+            f"--resume: the last checkpoint is at {steps} steps, which already reaches --timesteps "
+            f"{opts.timesteps}; ask for more timesteps to continue"
+        )
+    start = _Start(steps, mpath, vpath, rows, wall_before, int(summ.get("sessions", 1)) + 1, stored)
+    if opts.verbose:
+        print(
+            f"resuming {run.path} from checkpoint {mpath} at {steps:,} steps (session {start.sessions})",
+            flush=True,
+        )
+    return start
+
+
+def rollout_total(opts: TrainOptions, start_steps: int = 0) -> int:
+    """The step count training really ends at: PPO learns in whole rollouts of n_steps x num_envs
+    steps, so ``opts.timesteps`` is rounded up to the next whole rollout after ``start_steps``."""
+    per = int(opts.ppo_params()["n_steps"]) * opts.num_envs
+    return start_steps + -(-(opts.timesteps - start_steps) // per) * per
+
+
+def _build_model(opts: TrainOptions, run: RunFolder, start: _Start, venv: Any) -> tuple[Any, Any]:
+    """(model, VecNormalize-wrapped venv): a new PPO, or the checkpoint's (read without unpickling)."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from .trained import load_ppo_model, load_vecnormalize
+
+    ppo_params = opts.ppo_params()
+    tb = str(run.tb_dir) if opts.tensorboard and importlib.util.find_spec("tensorboard") is not None else None
+    if start.model_path is None:
+        venv = VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=ppo_params["gamma"])
+        kw = {k: v for k, v in ppo_params.items() if k not in ("net_arch", "log_std_init")}
+        model = PPO(
+            "MlpPolicy",
+            venv,
+            policy_kwargs={"net_arch": list(ppo_params["net_arch"]), "log_std_init": ppo_params["log_std_init"]},
+            tensorboard_log=tb,
+            seed=opts.seed,
+            device="cpu",
+            verbose=0,
+            **kw,
+        )
+        return model, venv
+    venv = load_vecnormalize(start.vecnorm_path, venv) if start.vecnorm_path is not None else VecNormalize(venv)
+    venv.training = True
+    venv.norm_reward = True
+    check_space_compatible(start.stored["observation_space"], venv.observation_space, "observation", run.path)
+    model = load_ppo_model(start.model_path, run_config=start.stored)
+    model.set_env(venv)
+    model.num_timesteps = start.steps
+    if tb is not None:
+        model.tensorboard_log = tb
+    return model, venv
+
+
+def _write_run_config(run: RunFolder, opts: TrainOptions, env_config: dict[str, Any], venv: Any) -> None:
+    """config.json (everything needed to reload and resume) and env_config.json of a new run."""
+    run.write_config(
+        {
+            "env_id": opts.env_id,
+            "env_config": env_config,
+            "ppo": json.loads(json.dumps(opts.ppo_params())),
+            "train": {
+                "timesteps": opts.timesteps,
+                "num_envs": opts.num_envs,
+                "seed": opts.seed,
+                "eval_freq": opts.eval_freq,
+                "eval_episodes": opts.eval_episodes,
+                "checkpoint_freq": opts.checkpoint_freq,
+            },
+            "vecnormalize": True,
+            "observation_space": space_to_dict(venv.observation_space),
+            "action_space": space_to_dict(venv.action_space),
+            "versions": versions(),
+            "command": " ".join(sys.argv),
+        }
+    )
+    # the bare environment settings, usable as `gear-env evaluate --config RUN_DIR/env_config.json`
+    atomic_write_text(run.path / "env_config.json", json.dumps(env_config, indent=2) + "\n")
+
+
+def _learn(
+    model: Any, venv: Any, run: RunFolder, opts: TrainOptions, start: _Start, state: dict[str, Any], cb: Any
+) -> int:
+    """Run PPO up to ``state["total"]`` steps; on Ctrl-C/SIGTERM write a checkpoint and re-raise."""
+    progress = opts.progress_bar and all(importlib.util.find_spec(m) is not None for m in ("tqdm", "rich"))
+    restore = _interrupt_on_sigterm()
+    try:
+        model.learn(
+            total_timesteps=state["total"] - start.steps,  # a whole number of rollouts: the bar ends at 100 %
+            callback=cb,
+            reset_num_timesteps=start.model_path is None,
+            progress_bar=progress,
+            tb_log_name="PPO",
+        )
+    except KeyboardInterrupt:
+        steps = int(model.num_timesteps)
+        path = run.save_checkpoint(model, venv, steps, keep=opts.keep_checkpoints)
+        state["interrupted"] = True
+        run.write_metrics(state["rows"], _summary(state, steps, opts))
+        print(f"\ninterrupted at {steps} steps; checkpoint {path} (continue with --resume)", file=sys.stderr)
+        raise
+    finally:
+        restore()
+    return int(model.num_timesteps)
+
+
+def _finish(
+    model: Any, venv: Any, run: RunFolder, opts: TrainOptions, state: dict[str, Any], cb: Any
+) -> dict[str, Any]:
+    """Last checkpoint, final evaluation, model.zip + statistics, metrics; returns the summary."""
+    steps = int(model.num_timesteps)
+    run.save_checkpoint(model, venv, steps, keep=opts.keep_checkpoints)
+    if not state["rows"] or state["rows"][-1]["timesteps"] != steps:
+        cb.evaluate()
+    run.save_model(model, venv, run.model_path, run.vecnorm_path)
+    state["finished"] = True
+    summary = _summary(state, steps, opts)
+    summary["final_eval"] = state["rows"][-1]
+    run.write_metrics(state["rows"], summary)
+    if opts.verbose:
+        print(
+            f"trained {steps} steps in {summary['wall_seconds']:.1f} s wall "
+            f"({summary['steps_per_second_this_session']:.0f} steps/s); run folder {run.path}",
+            flush=True,
+        )
+    return summary
+
+
 def train(opts: TrainOptions) -> dict[str, Any]:
     """Train (or resume) a PPO run as described by ``opts``; returns the summary dict.
 
     Raises :class:`KeyboardInterrupt` after writing a checkpoint if interrupted, and
     :class:`~agents.runs.RunFolderError` (a ValueError) for run-folder problems."""
     import torch
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import VecNormalize
 
     torch.set_num_threads(1)
     run = RunFolder(opts.out)
     env_config = config_to_dict(make_config(opts.env_id, dict(opts.env_config)))
-    ppo_params = opts.ppo_params()
-    start_steps = 0
-    wall_before = 0.0
-    rows: list[dict[str, Any]] = []
-    sessions = 1
-    if opts.resume:
-        stored = run.read_config()
-        _check_resume(stored, opts, env_config, run.path)
-        start_steps, ckpt_model, ckpt_vn = run.latest_checkpoint()
-        old = run.read_metrics()
-        rows = [r for r in old.get("evaluations", []) if r.get("timesteps", 0) <= start_steps]
-        summ = old.get("summary", {})
-        wall_before = float(summ.get("wall_seconds", 0.0)) if summ.get("timesteps", 0) >= start_steps else 0.0
-        sessions = int(summ.get("sessions", 1)) + 1
-        if start_steps >= opts.timesteps:
-            raise ValueError(
-                f"--resume: the last checkpoint is at {start_steps} steps, which already reaches --timesteps "
-                f"{opts.timesteps}; ask for more timesteps to continue"
-            )
-    else:
-        if run.config_path.exists() and not opts.overwrite:
-            raise RunFolderError(
-                f"{str(run.path)!r} already holds a run; use --resume to continue it, --overwrite to replace it, "
-                f"or choose another --out"
-            )
-        run.create()
-
+    start = _start_point(run, opts, env_config)
+    total = rollout_total(opts, start.steps)
+    if total != opts.timesteps and opts.verbose:
+        per = int(opts.ppo_params()["n_steps"]) * opts.num_envs
+        print(
+            f"note: PPO learns in whole rollouts of n_steps x num_envs = {per:,} steps; "
+            f"--timesteps {opts.timesteps:,} is rounded up to {total:,}",
+            flush=True,
+        )
     venv = make_sb3_vec_env(opts.env_id, env_config, opts.num_envs, opts.seed)
-    eval_n = min(opts.eval_episodes, 8)
-    eval_venv = make_sb3_vec_env(opts.env_id, env_config, eval_n, None)
+    eval_venv = make_sb3_vec_env(opts.env_id, env_config, min(opts.eval_episodes, 8), None)
     try:
-        if opts.resume:
-            from .trained import load_ppo_model
-
-            venv = VecNormalize.load(str(ckpt_vn), venv) if ckpt_vn is not None else VecNormalize(venv)
-            venv.training = True
-            venv.norm_reward = True
-            check_space_compatible(stored["observation_space"], venv.observation_space, "observation", run.path)
-            model = load_ppo_model(ckpt_model)
-            model.set_env(venv)
-            model.num_timesteps = start_steps
-            if opts.tensorboard and importlib.util.find_spec("tensorboard") is not None:
-                model.tensorboard_log = str(run.tb_dir)
-        else:
-            venv = VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=ppo_params["gamma"])
-            kw = {k: v for k, v in ppo_params.items() if k not in ("net_arch", "log_std_init")}
-            tb = str(run.tb_dir) if opts.tensorboard and importlib.util.find_spec("tensorboard") is not None else None
-            model = PPO(
-                "MlpPolicy",
-                venv,
-                policy_kwargs={"net_arch": list(ppo_params["net_arch"]), "log_std_init": ppo_params["log_std_init"]},
-                tensorboard_log=tb,
-                seed=opts.seed,
-                device="cpu",
-                verbose=0,
-                **kw,
-            )
-            run.write_config(
-                {
-                    "env_id": opts.env_id,
-                    "env_config": env_config,
-                    "ppo": json.loads(json.dumps(ppo_params)),
-                    "train": {
-                        "timesteps": opts.timesteps,
-                        "num_envs": opts.num_envs,
-                        "seed": opts.seed,
-                        "eval_freq": opts.eval_freq,
-                        "eval_episodes": opts.eval_episodes,
-                        "checkpoint_freq": opts.checkpoint_freq,
-                    },
-                    "vecnormalize": True,
-                    "observation_space": space_to_dict(venv.observation_space),
-                    "action_space": space_to_dict(venv.action_space),
-                    "versions": versions(),
-                    "command": " ".join(sys.argv),
-                }
-            )
-            # the bare environment settings, usable as `gear-env evaluate --config RUN_DIR/env_config.json`
-            atomic_write_text(run.path / "env_config.json", json.dumps(env_config, indent=2) + "\n")
+        model, venv = _build_model(opts, run, start, venv)
+        if start.model_path is None:
+            _write_run_config(run, opts, env_config, venv)
         state: dict[str, Any] = {
-            "rows": rows,
+            "rows": start.rows,
             "t0": time.perf_counter(),
-            "wall_before": wall_before,
-            "steps_at_start": start_steps,
-            "sessions": sessions,
+            "wall_before": start.wall_before,
+            "steps_at_start": start.steps,
+            "sessions": start.sessions,
+            "total": total,
         }
-        if rows:
-            state["best_return"] = max(r["return_mean"] for r in rows)
+        if start.rows:
+            state["best_return"] = max(r["return_mean"] for r in start.rows)
         cb = _callbacks(run, opts, eval_venv, state)
-        progress = opts.progress_bar and all(importlib.util.find_spec(m) is not None for m in ("tqdm", "rich"))
-        restore = _interrupt_on_sigterm()
-        try:
-            model.learn(
-                total_timesteps=opts.timesteps - start_steps,
-                callback=cb,
-                reset_num_timesteps=not opts.resume,
-                progress_bar=progress,
-                tb_log_name="PPO",
-            )
-        except KeyboardInterrupt:
-            steps = int(model.num_timesteps)
-            path = run.save_checkpoint(model, venv, steps, keep=opts.keep_checkpoints)
-            state["interrupted"] = True
-            run.write_metrics(state["rows"], _summary(state, steps, opts))
-            print(f"\ninterrupted at {steps} steps; checkpoint {path} (continue with --resume)", file=sys.stderr)
-            raise
-        finally:
-            restore()
-        steps = int(model.num_timesteps)
-        run.save_checkpoint(model, venv, steps, keep=opts.keep_checkpoints)
-        if not state["rows"] or state["rows"][-1]["timesteps"] != steps:
-            cb.evaluate()
-        run.save_model(model, venv, run.model_path, run.vecnorm_path)
-        state["finished"] = True
-        summary = _summary(state, steps, opts)
-        summary["final_eval"] = state["rows"][-1]
-        run.write_metrics(state["rows"], summary)
-        if opts.verbose:
-            print(
-                f"trained {steps} steps in {summary['wall_seconds']:.1f} s wall "
-                f"({summary['steps_per_second_this_session']:.0f} steps/s); run folder {run.path}",
-                flush=True,
-            )
-        return summary
+        _learn(model, venv, run, opts, start, state, cb)
+        return _finish(model, venv, run, opts, state, cb)
     finally:
         venv.close()
         eval_venv.close()
 
 
-# --------------------------------------------------------------------------------------------------
-# command line
-# --------------------------------------------------------------------------------------------------
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    """Register the training options on ``p`` (shared by train.py and ``gear-env train``)."""
-    p.add_argument("--out", required=True, metavar="RUN_DIR", help="run folder to create (or resume)")
-    p.add_argument("--timesteps", type=int, default=700_000, help="total environment steps (default 700000)")
-    p.add_argument("--num-envs", type=int, default=16, help="sub-environments in the vector env (default 16)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--resume", action="store_true", help="continue RUN_DIR from its last checkpoint")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing run in RUN_DIR")
-    p.add_argument("--config", metavar="FILE.json", help="environment config (JSON object of GearSpeedConfig fields)")
-    p.add_argument(
-        "--set", action="append", default=[], metavar="KEY=VALUE", help="override one env config field (JSON value)"
-    )
-    p.add_argument("--model", choices=["constant", "dynamic"], help="backlash model of the environment")
-    p.add_argument("--randomize-params", action="store_true", help="randomise the physics parameters per episode")
-    p.add_argument("--demand", metavar="PROFILE", help="demand profile of the environment (name or file)")
-    p.add_argument("--env-id", default=GEAR_ENV_ID, help=argparse.SUPPRESS)
-    p.add_argument("--eval-freq", type=int, default=50_000, help="evaluate every N total steps (0 = only at the end)")
-    p.add_argument("--eval-episodes", type=int, default=16, help="episodes per evaluation (default 16)")
-    p.add_argument("--checkpoint-freq", type=int, default=50_000, help="checkpoint every N total steps (0 = off)")
-    p.add_argument("--ppo", action="append", default=[], metavar="KEY=VALUE", help="PPO hyper-parameter (JSON value)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--no-tensorboard", action="store_true", help="no TensorBoard logs")
-    p.add_argument("--quiet", action="store_true", help="print only errors")
-
-
-def _demand(text: str) -> Any:
-    """--demand: a preset name of GearSpeedConfig.demand, or a JSON/CSV file of (t_steps, omega) rows."""
-    if not os.path.isfile(text):
-        return text  # a preset name; GearSpeedConfig validates it
-    try:
-        raw = Path(text).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ValueError(f"--demand: cannot read {text!r}: {exc}") from exc
-    if text.lower().endswith(".json"):
-        try:
-            return json.loads(raw)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"--demand: {text!r} is not valid JSON: {exc}") from exc
-    rows = []
-    for i, line in enumerate(raw.splitlines()):
-        cells = [c.strip() for c in line.replace(";", ",").split(",") if c.strip()]
-        if not cells or cells[0].startswith("#"):
-            continue
-        try:
-            rows.append([float(cells[0]), float(cells[1])])
-        except (ValueError, IndexError):
-            if i == 0:
-                continue  # header row
-            raise ValueError(f"--demand: line {i + 1} of {text!r} is not 't_steps,omega': {line!r}") from None
-    return rows
-
-
-def _kv(items: Sequence[str], what: str) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for item in items:
-        if "=" not in item:
-            raise ValueError(f"{what}: expected KEY=VALUE, got {item!r}")
-        k, v = item.split("=", 1)
-        try:
-            out[k.strip()] = json.loads(v)
-        except json.JSONDecodeError:
-            out[k.strip()] = v
-    return out
-
-
-def options_from_args(args: argparse.Namespace) -> TrainOptions:
-    """Build :class:`TrainOptions` from parsed command-line arguments."""
-    env_cfg: dict[str, Any] = load_config_file(args.config) if args.config else {}
-    explicit_env = bool(args.config)
-    if args.model:
-        env_cfg["model"] = args.model
-    if args.randomize_params:
-        env_cfg["randomize_params"] = True
-    if args.demand:
-        env_cfg["demand"] = _demand(args.demand)
-    env_cfg.update(_kv(args.set, "--set"))
-    explicit_env = explicit_env or bool(args.model or args.randomize_params or args.demand or args.set)
-    env_id = args.env_id
-    if args.resume and not explicit_env:
-        # resume with the stored environment unless the user asked for something else
-        stored = RunFolder(args.out).read_config()
-        env_cfg = dict(stored["env_config"])
-        env_id = stored["env_id"]
-    ppo = _kv(args.ppo, "--ppo")
-    if args.resume:  # stored hyper-parameters, with any explicit --ppo on top (checked for compatibility)
-        ppo = {**dict(RunFolder(args.out).read_config().get("ppo", {})), **ppo}
-    return TrainOptions(
-        out=args.out,
-        env_id=env_id,
-        env_config=env_cfg,
-        timesteps=args.timesteps,
-        num_envs=args.num_envs,
-        seed=args.seed,
-        eval_freq=args.eval_freq,
-        eval_episodes=args.eval_episodes,
-        checkpoint_freq=args.checkpoint_freq,
-        resume=args.resume,
-        overwrite=args.overwrite,
-        ppo=ppo,
-        progress_bar=not args.no_progress,
-        tensorboard=not args.no_tensorboard,
-        verbose=0 if args.quiet else 1,
-    )
-
-
-def run_from_args(args: argparse.Namespace) -> int:
-    """Run training from parsed arguments; 0 on success, 130 after Ctrl-C (checkpoint written)."""
-    opts = options_from_args(args)
-    try:
-        train(opts)
-    except KeyboardInterrupt:
-        return 130
-    return 0
-
-
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="train.py",
-        description="Train a PPO speed-scheduling agent on GearSpeed-v0 (same as `gear-env train`).",
-    )
-    add_arguments(p)
-    return p
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command-line entry point of train.py; returns the exit code (2 on a usage/config error)."""
-    args = build_parser().parse_args(argv)
-    try:
-        return run_from_args(args)
-    except (ValueError, OSError) as exc:
-        print(f"train: error: {exc}", file=sys.stderr)
-        return 2
-
-
-__all__ = ["PPO_DEFAULTS", "TrainOptions", "add_arguments", "evaluate_model", "main", "run_from_args", "train"]
-
-if __name__ == "__main__":  # pragma: no cover
-    os.environ.setdefault("MPLBACKEND", "Agg")
-    sys.exit(main())
+__all__ = ["PPO_DEFAULTS", "TrainOptions", "evaluate_model", "rollout_total", "train", "validate_ppo"]

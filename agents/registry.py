@@ -11,7 +11,7 @@ Specs (case-sensitive):
 ``constant:W``              go to omega = W and hold it (e.g. ``constant:1.2``)
 ``ramp`` / ``ramp:W[:F]``   slow ramp to the best omega (or W) at fraction F of the max rate (0.25)
 ``hill-climber``            greedy vibration-feedback controller
-``random``                  uniform random actions (seeded; a sanity floor)
+``random[:SEED]``           uniform random actions (seeded; a sanity floor)
 ==========================  ===========================================================================
 
 A trained model is checked against the environment it is evaluated on: a model trained on another
@@ -20,6 +20,7 @@ observation layout raises a clear ``ValueError``.
 
 from __future__ import annotations
 
+import math
 import os
 from importlib import resources
 from pathlib import Path
@@ -27,7 +28,18 @@ from typing import Any
 
 import numpy as np
 
-NAMES = ("pretrained", "oracle", "constant-best", "constant:W", "ramp", "ramp:W[:F]", "hill-climber", "random")
+from .policy import BasePolicy
+
+NAMES = (
+    "pretrained",
+    "oracle",
+    "constant-best",
+    "constant:W",
+    "ramp",
+    "ramp:W[:F]",
+    "hill-climber",
+    "random[:SEED]",
+)
 
 
 def pretrained_dir() -> Path:
@@ -35,33 +47,41 @@ def pretrained_dir() -> Path:
     return Path(str(resources.files("gear_env") / "data" / "pretrained"))
 
 
-class RandomPolicy:
+class RandomPolicy(BasePolicy):
     """Uniform random actions in [-1, 1] (seeded; ``deterministic`` is ignored)."""
 
     name = "random"
 
     def __init__(self, seed: int = 0):
-        self.rng = np.random.default_rng(seed)
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
+            raise ValueError(f"random policy seed must be an integer in [0, 2**63), got {seed!r}")
+        self.rng = np.random.default_rng(int(seed))
 
-    def predict(
-        self,
-        observation: np.ndarray,
-        state: Any = None,
-        episode_start: np.ndarray | None = None,
-        deterministic: bool = True,
+    def predict_batch(
+        self, observations: np.ndarray, state: Any, episode_start: np.ndarray | None, deterministic: bool
     ) -> tuple[np.ndarray, Any]:
-        """Random actions, shape (1,) for one observation or (n, 1) for a batch."""
-        obs = np.asarray(observation)
-        n = 1 if obs.ndim == 1 else obs.shape[0]
-        a = self.rng.uniform(-1.0, 1.0, size=(n, 1)).astype(np.float32)
-        return (a[0] if obs.ndim == 1 else a), state
+        """Random actions (n, 1)."""
+        return self.rng.uniform(-1.0, 1.0, size=(len(observations), 1)).astype(np.float32), state
 
 
 def _float(text: str, spec: str) -> float:
     try:
-        return float(text)
+        v = float(text)
     except ValueError:
         raise ValueError(f"policy spec {spec!r}: {text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ValueError(f"policy spec {spec!r}: {text!r} is not a finite number")
+    return v
+
+
+def _seed(text: str, spec: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise ValueError(f"policy spec {spec!r}: the seed {text!r} is not an integer (random:SEED)") from None
+    if not 0 <= v < 2**63:
+        raise ValueError(f"policy spec {spec!r}: the seed must be an integer in [0, 2**63), got {v}")
+    return v
 
 
 def resolve_policy(spec: str, config: Any = None) -> Any:
@@ -93,7 +113,7 @@ def resolve_policy(spec: str, config: Any = None) -> Any:
     if s in ("hill-climber", "hillclimber", "hill_climber"):
         return HillClimber(config)
     if s == "random" or s.startswith("random:"):
-        return RandomPolicy(int(_float(s.split(":", 1)[1], s)) if ":" in s else 0)
+        return RandomPolicy(_seed(s.split(":", 1)[1], s) if ":" in s else 0)
     from .trained import load_trained_policy
 
     if s == "pretrained":

@@ -5,15 +5,18 @@ Layout of a run folder ``RUN_DIR``::
     RUN_DIR/
       config.json          exact environment config, PPO hyper-parameters, training options, versions,
                            observation/action spaces (format ``gear-env-run/1``)
-      model.zip            final SB3 PPO model
-      vecnormalize.pkl     VecNormalize statistics saved with the model (reloaded frozen)
+      model.zip            final SB3 PPO model (loaded without unpickling: :func:`agents.trained.load_ppo_model`)
+      vecnormalize.npz     VecNormalize statistics (plain arrays, no pickle; reloaded frozen)
       metrics.csv          one row per evaluation (timesteps, wall seconds, returns, settled omega...)
       metrics.json         the same rows plus a final summary (wall time, steps per second)
-      checkpoints/         ckpt_<steps>.zip, ckpt_<steps>_vecnormalize.pkl, latest.json
+      checkpoints/         ckpt_<steps>.zip, ckpt_<steps>_vecnormalize.npz, latest.json
       tb/                  TensorBoard event files (only if tensorboard is installed)
 
 Every file is written atomically (temporary name, then ``os.replace``) so an interrupted run
-never leaves a half-written model or checkpoint behind.
+never leaves a half-written model or checkpoint behind. Nothing in a run folder is unpickled when
+it is read: the statistics are a NumPy ``.npz`` read with ``allow_pickle=False``, the model zip is
+read with every serialised entry replaced (see :mod:`agents.trained`), and ``latest.json`` may only
+name checkpoint files inside ``checkpoints/``.
 """
 
 from __future__ import annotations
@@ -23,17 +26,25 @@ import io
 import json
 import os
 import platform
+import re
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from gear_env.io import atomic_write, atomic_write_bytes, atomic_write_text
+import numpy as np
+
+from gear_env.io import atomic_write, atomic_write_bytes, atomic_write_text, read_json
 
 RUN_FORMAT = "gear-env-run/1"
 CONFIG_FILE = "config.json"
 MODEL_FILE = "model.zip"
-VECNORM_FILE = "vecnormalize.pkl"
+VECNORM_FILE = "vecnormalize.npz"
+LEGACY_VECNORM_SUFFIX = ".pkl"
+"""Statistics pickled by older gear-env versions: never loaded (see :func:`convert_pickled_statistics`)."""
+VECNORM_FORMAT = "gear-env-vecnormalize/1"
+_CKPT_NAME = re.compile(r"ckpt_[0-9]{9}\.zip")
+_CKPT_VN_NAME = re.compile(r"ckpt_[0-9]{9}_vecnormalize\.npz")
 METRICS_CSV = "metrics.csv"
 METRICS_JSON = "metrics.json"
 CHECKPOINT_DIR = "checkpoints"
@@ -70,6 +81,28 @@ def space_to_dict(space: Any) -> dict[str, Any]:
     if hasattr(space, "n"):
         d["n"] = int(space.n)
     return d
+
+
+def space_from_dict(d: Mapping[str, Any]) -> Any:
+    """The gymnasium Box/Discrete space a :func:`space_to_dict` description names (RunFolderError if not)."""
+    from gymnasium import spaces
+
+    try:
+        if d.get("type") == "Box":
+            shape = tuple(int(n) for n in d["shape"])
+            if len(shape) > 8 or int(np.prod(shape)) > 1_000_000:
+                raise ValueError(f"implausible shape {shape}")
+            dtype = np.dtype(str(d.get("dtype", "float32")))
+            if dtype.kind != "f":
+                raise ValueError(f"dtype {dtype} is not a float type")
+            low = np.asarray(d["low"], np.float64).reshape(shape)
+            high = np.asarray(d["high"], np.float64).reshape(shape)
+            return spaces.Box(low=low.astype(dtype), high=high.astype(dtype), shape=shape, dtype=dtype)
+        if d.get("type") == "Discrete":
+            return spaces.Discrete(int(d["n"]))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise RunFolderError(f"corrupt space description {dict(d)!r}: {exc}") from exc
+    raise RunFolderError(f"unsupported space type {d.get('type')!r} in a run folder (Box or Discrete)")
 
 
 def check_space_compatible(saved: Mapping[str, Any], space: Any, what: str, run_dir: str | os.PathLike) -> None:
@@ -144,8 +177,8 @@ class RunFolder:
                 f"(expected files: {CONFIG_FILE}, {MODEL_FILE}, {VECNORM_FILE})"
             )
         try:
-            data = json.loads(self.config_path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            data = read_json(self.config_path, CONFIG_FILE, max_bytes=1024 * 1024)
+        except (OSError, ValueError) as exc:
             raise RunFolderError(f"corrupt run folder {str(self.path)!r}: cannot read {CONFIG_FILE}: {exc}") from exc
         if not isinstance(data, dict) or data.get("format") != RUN_FORMAT:
             raise RunFolderError(
@@ -159,8 +192,8 @@ class RunFolder:
 
     # ---- checkpoints -------------------------------------------------------------------------
     def checkpoint_paths(self, steps: int) -> tuple[Path, Path]:
-        """(model zip, VecNormalize pickle) of the checkpoint at ``steps`` timesteps."""
-        return self.checkpoint_dir / f"ckpt_{steps:09d}.zip", self.checkpoint_dir / f"ckpt_{steps:09d}_vecnormalize.pkl"
+        """(model zip, VecNormalize statistics) of the checkpoint at ``steps`` timesteps."""
+        return self.checkpoint_dir / f"ckpt_{steps:09d}.zip", self.checkpoint_dir / f"ckpt_{steps:09d}_vecnormalize.npz"
 
     def save_model(self, model: Any, vecnorm: Any, model_path: Path, vecnorm_path: Path) -> None:
         """Save an SB3 model and its VecNormalize atomically (each file complete or absent)."""
@@ -172,7 +205,7 @@ class RunFolder:
 
         atomic_write(model_path, _w_model)
         if vecnorm is not None:
-            atomic_write(vecnorm_path, vecnorm.save)
+            save_vecnormalize(vecnorm, vecnorm_path)
 
     def save_checkpoint(self, model: Any, vecnorm: Any, steps: int, keep: int = 3) -> Path:
         """Write a checkpoint (model + VecNormalize + step count) and point latest.json at it.
@@ -184,17 +217,51 @@ class RunFolder:
         self.save_model(model, vecnorm, mpath, vpath)
         latest = {"steps": int(steps), "model": mpath.name, "vecnormalize": vpath.name if vecnorm is not None else None}
         atomic_write_text(self.checkpoint_dir / LATEST_FILE, json.dumps(latest) + "\n")
-        self._prune(keep)
+        self._prune(keep, int(steps))
         return mpath
 
-    def _prune(self, keep: int) -> None:
-        zips = sorted(self.checkpoint_dir.glob("ckpt_*.zip"))
-        for old in zips[: max(0, len(zips) - keep)]:
-            for p in (old, old.with_name(old.stem + "_vecnormalize.pkl")):
+    def _prune(self, keep: int, newest: int) -> None:
+        """Delete the checkpoints older than the ``keep`` most recent up to ``newest`` steps.
+
+        A checkpoint with more steps than ``newest`` cannot be this run's (it is left by an older
+        run; :meth:`clear_checkpoints` removes those when a run is overwritten) and is never the
+        reason the newest one is deleted."""
+        zips = sorted(
+            (int(p.name[5:14]), p) for p in self.checkpoint_dir.glob("ckpt_*.zip") if _CKPT_NAME.fullmatch(p.name)
+        )
+        mine = [p for n, p in zips if n <= newest]
+        for old in mine[: max(0, len(mine) - keep)]:
+            for q in [old] + [old.with_name(f"{old.stem}_vecnormalize{ext}") for ext in (".npz", ".pkl")]:
                 try:
-                    p.unlink()
+                    q.unlink()
                 except OSError:
                     pass
+
+    def clear(self) -> int:
+        """Delete the files of an earlier run (models, statistics, metrics, checkpoints; ``--overwrite``).
+
+        config.json is left to be replaced atomically by the new run; TensorBoard logs are kept.
+        Returns the number of files deleted."""
+        n = self.clear_checkpoints()
+        names = (MODEL_FILE, "best_model.zip", METRICS_CSV, METRICS_JSON, "env_config.json")
+        stats = ("vecnormalize", "best_vecnormalize")
+        for name in names + tuple(f"{b}{ext}" for b in stats for ext in (".npz", ".pkl")):
+            q = self.path / name
+            if q.is_file() or q.is_symlink():
+                q.unlink()
+                n += 1
+        return n
+
+    def clear_checkpoints(self) -> int:
+        """Delete every checkpoint file and latest.json (before a run is overwritten); returns the count."""
+        n = 0
+        if not self.checkpoint_dir.is_dir():
+            return 0
+        for p in self.checkpoint_dir.iterdir():
+            if p.name == LATEST_FILE or (p.name.startswith("ckpt_") and p.suffix in (".zip", ".npz", ".pkl")):
+                p.unlink()
+                n += 1
+        return n
 
     def latest_checkpoint(self) -> tuple[int, Path, Path | None]:
         """(steps, model path, VecNormalize path or None) of the last complete checkpoint.
@@ -206,12 +273,23 @@ class RunFolder:
                 f"cannot resume: no checkpoint in {str(self.checkpoint_dir)!r} ({LATEST_FILE} missing)"
             )
         try:
-            data = json.loads(latest.read_text(encoding="utf-8"))
+            data = read_json(latest, "checkpoint index", max_bytes=64 * 1024)
             steps = int(data["steps"])
-            mpath = self.checkpoint_dir / str(data["model"])
-            vpath = self.checkpoint_dir / str(data["vecnormalize"]) if data.get("vecnormalize") else None
+            mname = str(data["model"])
+            vname = str(data["vecnormalize"]) if data.get("vecnormalize") else None
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise RunFolderError(f"cannot resume: corrupt {str(latest)!r}: {exc}") from exc
+        # latest.json names files of checkpoints/ only: a plain checkpoint name, never a path
+        if not _CKPT_NAME.fullmatch(mname) or (vname is not None and not _CKPT_VN_NAME.fullmatch(vname)):
+            raise RunFolderError(
+                f"cannot resume: {str(latest)!r} names {mname!r}/{vname!r}; only checkpoint files of "
+                f"{CHECKPOINT_DIR}/ (ckpt_<steps>.zip, ckpt_<steps>_vecnormalize.npz) are loaded"
+            )
+        mpath = self.checkpoint_dir / mname
+        vpath = self.checkpoint_dir / vname if vname is not None else None
+        for q in (mpath, vpath):
+            if q is not None and q.is_symlink():
+                raise RunFolderError(f"cannot resume: checkpoint file {str(q)!r} is a symbolic link; not loaded")
         if not mpath.is_file():
             raise RunFolderError(f"cannot resume: checkpoint model {str(mpath)!r} is missing")
         if vpath is not None and not vpath.is_file():
@@ -241,8 +319,8 @@ class RunFolder:
         if not p.is_file():
             return {}
         try:
-            return json.loads(p.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError) as exc:
+            return read_json(p, METRICS_JSON)
+        except (OSError, ValueError) as exc:
             raise RunFolderError(f"corrupt {str(p)!r}: {exc}") from exc
 
 
@@ -250,7 +328,7 @@ def export_policy(run_dir: str | os.PathLike, dest: str | os.PathLike, use_best:
     """Copy the files needed to evaluate a run's policy (no checkpoints, no TensorBoard logs) to ``dest``.
 
     This is how ``gear_env/data/pretrained/`` is made: config.json, env_config.json, model.zip,
-    vecnormalize.pkl and metrics.json. ``use_best`` takes best_model.zip/best_vecnormalize.pkl
+    vecnormalize.npz and metrics.json. ``use_best`` takes best_model.zip/best_vecnormalize.npz
     (the best evaluation during training) instead of the final model. Returns ``dest``."""
     src = RunFolder(run_dir)
     src.read_config()  # validates the folder
@@ -258,7 +336,7 @@ def export_policy(run_dir: str | os.PathLike, dest: str | os.PathLike, use_best:
     out.mkdir(parents=True, exist_ok=True)
     pairs = [(CONFIG_FILE, CONFIG_FILE), ("env_config.json", "env_config.json"), (METRICS_JSON, METRICS_JSON)]
     if use_best:
-        pairs += [("best_model.zip", MODEL_FILE), ("best_vecnormalize.pkl", VECNORM_FILE)]
+        pairs += [("best_model.zip", MODEL_FILE), ("best_vecnormalize.npz", VECNORM_FILE)]
     else:
         pairs += [(MODEL_FILE, MODEL_FILE), (VECNORM_FILE, VECNORM_FILE)]
     for a, b in pairs:
@@ -267,6 +345,96 @@ def export_policy(run_dir: str | os.PathLike, dest: str | os.PathLike, use_best:
             raise RunFolderError(f"cannot export {str(src.path)!r}: {a} is missing")
         atomic_write_bytes(out / b, p.read_bytes())
     return out
+
+
+# --------------------------------------------------------------------------------------------------
+# normalisation statistics without pickles
+# --------------------------------------------------------------------------------------------------
+def save_vecnormalize(vecnorm: Any, path: str | os.PathLike) -> None:
+    """Write the statistics of an SB3 ``VecNormalize`` as a NumPy ``.npz`` (no pickle), atomically."""
+    arrays = {
+        "format": np.array(VECNORM_FORMAT),
+        "obs_mean": np.asarray(vecnorm.obs_rms.mean, np.float64),
+        "obs_var": np.asarray(vecnorm.obs_rms.var, np.float64),
+        "obs_count": np.array(float(vecnorm.obs_rms.count)),
+        "ret_mean": np.asarray(vecnorm.ret_rms.mean, np.float64),
+        "ret_var": np.asarray(vecnorm.ret_rms.var, np.float64),
+        "ret_count": np.array(float(vecnorm.ret_rms.count)),
+        "clip_obs": np.array(float(vecnorm.clip_obs)),
+        "clip_reward": np.array(float(vecnorm.clip_reward)),
+        "gamma": np.array(float(vecnorm.gamma)),
+        "epsilon": np.array(float(vecnorm.epsilon)),
+        "norm_obs": np.array(bool(vecnorm.norm_obs)),
+        "norm_reward": np.array(bool(vecnorm.norm_reward)),
+    }
+
+    def _w(tmp: str) -> None:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+
+    atomic_write(path, _w)
+
+
+def read_vecnormalize_stats(path: str | os.PathLike) -> dict[str, Any]:
+    """The statistics written by :func:`save_vecnormalize` as plain numbers and arrays.
+
+    Read with ``allow_pickle=False``; a pickled file of an older gear-env is refused with the way to
+    convert it. :class:`RunFolderError` if missing, corrupt or inconsistent."""
+    import zipfile
+
+    p = Path(path)
+    if p.suffix == LEGACY_VECNORM_SUFFIX or (not p.exists() and p.with_suffix(LEGACY_VECNORM_SUFFIX).is_file()):
+        legacy = p if p.suffix == LEGACY_VECNORM_SUFFIX else p.with_suffix(LEGACY_VECNORM_SUFFIX)
+        raise RunFolderError(
+            f"{str(legacy)!r} holds pickled statistics (written by an older gear-env); gear-env no longer loads "
+            "pickles, which can run code. If you wrote this run yourself, convert it once with "
+            f'`python -c "from agents.runs import convert_pickled_statistics as c; c({str(legacy)!r})"`'
+        )
+    if not p.is_file():
+        raise RunFolderError(f"normalisation statistics {str(p)!r} are missing")
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            d = {k: z[k] for k in z.files}
+        if str(d["format"]) != VECNORM_FORMAT:
+            raise ValueError(f"format {str(d['format'])!r}, expected {VECNORM_FORMAT!r}")
+        out = {
+            "obs_mean": np.asarray(d["obs_mean"], np.float64),
+            "obs_var": np.asarray(d["obs_var"], np.float64),
+            "ret_mean": np.asarray(d["ret_mean"], np.float64),
+            "ret_var": np.asarray(d["ret_var"], np.float64),
+        }
+        for k in ("obs_count", "ret_count", "clip_obs", "clip_reward", "gamma", "epsilon"):
+            out[k] = float(d[k])
+        for k in ("norm_obs", "norm_reward"):
+            out[k] = bool(d[k])
+    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as exc:
+        raise RunFolderError(f"corrupt normalisation statistics {str(p)!r}: {type(exc).__name__}: {exc}") from exc
+    if out["obs_mean"].shape != out["obs_var"].shape or out["obs_mean"].ndim != 1:
+        raise RunFolderError(f"corrupt normalisation statistics {str(p)!r}: mean and variance shapes differ")
+    finite = [out["obs_mean"], out["obs_var"], out["ret_mean"], out["ret_var"]]
+    if not all(np.all(np.isfinite(a)) for a in finite) or np.any(out["obs_var"] < 0):
+        raise RunFolderError(f"corrupt normalisation statistics {str(p)!r}: non-finite or negative values")
+    return out
+
+
+def convert_pickled_statistics(path: str | os.PathLike) -> Path:
+    """Convert a ``*vecnormalize.pkl`` of an older gear-env that YOU trust into ``.npz``; returns the new path.
+
+    This unpickles the file, which can run code: use it only on files you wrote yourself. Pass
+    a run folder to convert every pickle in it (model, best model and checkpoints)."""
+    import pickle
+
+    p = Path(path)
+    if p.is_dir():
+        last = p
+        for q in sorted(p.glob("*vecnormalize.pkl")) + sorted((p / CHECKPOINT_DIR).glob("*_vecnormalize.pkl")):
+            last = convert_pickled_statistics(q)
+        return last
+    with open(p, "rb") as fh:
+        vn = pickle.load(fh)  # noqa: S301 - explicitly trusted by the caller (see the docstring)
+    dest = p.with_suffix(".npz")
+    save_vecnormalize(vn, dest)
+    return dest
 
 
 def _json_default(obj: Any) -> Any:
@@ -288,6 +456,10 @@ def _json_default(obj: Any) -> Any:
 
 __all__ = [
     "RUN_FORMAT",
+    "convert_pickled_statistics",
+    "read_vecnormalize_stats",
+    "save_vecnormalize",
+    "space_from_dict",
     "RunFolder",
     "RunFolderError",
     "check_space_compatible",

@@ -24,7 +24,6 @@ Times must be non-decreasing (a repeated time makes a step change); omegas must 
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -33,6 +32,9 @@ from typing import Any
 import numpy as np
 
 from .env_config import GearSpeedConfig
+
+MAX_SCHEDULE_BYTES = 16 * 1024 * 1024
+"""Largest schedule file read (bytes); a larger one is refused before it is read."""
 
 
 def _validate_points(
@@ -122,6 +124,8 @@ class SpeedSchedule:
         where = f"schedule file {p!r}"
         if not os.path.isfile(p):
             raise ValueError(f"{where} does not exist")
+        if os.path.getsize(p) > MAX_SCHEDULE_BYTES:  # checked before anything is read
+            raise ValueError(f"{where} is {os.path.getsize(p):,} bytes; the limit is {MAX_SCHEDULE_BYTES:,} bytes")
         try:
             if p.lower().endswith(".json"):
                 points, rows = cls._read_json(p, where)
@@ -155,11 +159,9 @@ class SpeedSchedule:
 
     @staticmethod
     def _read_json(path: str, where: str) -> tuple[list[Any], list[str]]:
-        with open(path, encoding="utf-8-sig") as fh:
-            try:
-                data = json.load(fh)
-            except json.JSONDecodeError as exc:
-                raise ValueError(f"{where}: not valid JSON ({exc})") from None
+        from .io import parse_json_text, read_limited
+
+        data = parse_json_text(read_limited(path, where, MAX_SCHEDULE_BYTES).decode("utf-8-sig"), where)
         if isinstance(data, Mapping):
             if "points" in data:
                 data = data["points"]

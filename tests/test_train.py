@@ -47,7 +47,7 @@ def run_dir(tmp_path_factory):
 
 
 def test_training_writes_a_complete_run_folder_that_loads(run_dir):
-    for name in ("model.zip", "vecnormalize.pkl", "config.json", "env_config.json", "metrics.csv", "metrics.json"):
+    for name in ("model.zip", "vecnormalize.npz", "config.json", "env_config.json", "metrics.csv", "metrics.json"):
         assert (run_dir / name).is_file(), name
     cfg = RunFolder(run_dir).read_config()
     assert cfg["env_config"] == GearSpeedConfig.from_kwargs(FAST_ENV).to_dict()
@@ -130,7 +130,7 @@ def test_missing_and_corrupt_run_folders_give_clear_errors(run_dir, tmp_path):
     with pytest.raises(RunFolderError, match="corrupt model file"):
         resolve_policy(str(bad), FAST_ENV)
     shutil.copy(run_dir / "model.zip", bad / "model.zip")
-    (bad / "vecnormalize.pkl").write_bytes(b"\x80\x04garbage")
+    (bad / "vecnormalize.npz").write_bytes(b"\x80\x04garbage")
     with pytest.raises(RunFolderError, match="corrupt normalisation statistics"):
         resolve_policy(str(bad), FAST_ENV)
     (bad / "config.json").write_text("{not json")
@@ -181,7 +181,7 @@ def test_train_command_line_and_exit_codes(tmp_path, capsys):
     assert (out / "model.zip").is_file()
     assert RunFolder(out).read_config()["train"]["seed"] == 3
     # the same code behind train.py: a usage error is exit 2 with a message
-    from agents.ppo import main as train_main
+    from gear_env.cli.train import main as train_main
 
     assert train_main(["--out", str(out), "--config", str(tmp_path / "missing.json")]) == 2
     assert "does not exist" in capsys.readouterr().err

@@ -4,6 +4,18 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
+import time
+
+from .common import check_outputs, int_range
+
+
+def _policy_names() -> str:
+    try:
+        from agents.registry import NAMES  # type: ignore[import-not-found]
+    except ImportError:  # the agents package is not installed: schedules only
+        return "(needs the agents package)"
+    return ", ".join(NAMES) + ", or a training run folder RUN_DIR (also RUN_DIR/best_model.zip)"
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -13,7 +25,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description=(
             "Roll out speed schedules (CSV/JSON files of (time in env steps, omega) points, or built-ins "
             "constant:W, ramp:W0:W1:STEPS, piecewise:T0=W0,T1=W1,...) and policies on the same episode seeds; "
-            "print a table of return, throughput, chaotic fraction, contact loss and impacts."
+            "print a table of return, throughput, chaotic fraction, contact loss and impacts. "
+            "Run folders are read without unpickling anything (docs/TRAINING.md: what is safe to load)."
         ),
     )
     p.add_argument("--schedule", action="append", default=[], metavar="FILE|SPEC", help="a schedule (repeatable)")
@@ -22,10 +35,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         action="append",
         default=[],
         metavar="SPEC",
-        help="a policy spec resolved by agents.registry (repeatable)",
+        help=f"a policy (repeatable): {_policy_names()}",
     )
-    p.add_argument("--episodes", type=int, default=5, help="episodes per policy (default 5)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the first episode (default 0)")
+    p.add_argument("--episodes", type=int_range(1, 100_000), default=5, help="episodes per policy (default 5)")
+    p.add_argument(
+        "--seed", type=int_range(0, 2**32 - 1), default=0, help="seed of the first episode, 0-4294967295 (default 0)"
+    )
     p.add_argument("--config", metavar="CONFIG.json", help="JSON object of GearSpeed-v0 settings")
     p.add_argument("--json", metavar="PATH", help="write the results as JSON")
     p.add_argument("--markdown", metavar="PATH", help="write the table as Markdown")
@@ -34,14 +49,30 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..env_config import GearSpeedConfig
-    from ..evaluation import evaluate_policies
-    from ..io import atomic_write_text
-    from ..schedules import SpeedSchedule
-
-    cfg = GearSpeedConfig.from_json(args.config) if args.config else GearSpeedConfig()
+    t0 = time.perf_counter()
     if not args.schedule and not args.policy:
         raise ValueError("give at least one --schedule FILE|SPEC or --policy SPEC")
+    if args.seed + args.episodes - 1 > 2**32 - 1:
+        raise ValueError(f"--seed + --episodes - 1 must be <= {2**32 - 1} (episode k uses seed --seed + k)")
+    check_outputs(args, ("json", "markdown", "plot"), ("config", "schedule", "policy"))
+    n = len(args.schedule) + len(args.policy)
+    print(
+        f"evaluating {n} polic{'y' if n == 1 else 'ies'} x {args.episodes} episode(s) on GearSpeed-v0, "
+        f"seeds {args.seed}..{args.seed + args.episodes - 1} (a fresh numba cache first compiles for about a minute)",
+        flush=True,
+    )
+    from ..env_config import GearSpeedConfig
+    from ..evaluation import evaluate_policies
+    from ..io import atomic_write_text, read_json
+    from ..schedules import SpeedSchedule
+
+    if args.config:
+        data = read_json(args.config, "--config", max_bytes=1024 * 1024)
+        if not isinstance(data, dict):
+            raise ValueError(f"--config {args.config!r} must hold a JSON object of settings")
+        cfg = GearSpeedConfig.from_kwargs(data)
+    else:
+        cfg = GearSpeedConfig()
     policies: dict[str, object] = {}
     for spec in args.schedule:
         s = SpeedSchedule.from_spec(spec, cfg)
@@ -53,10 +84,15 @@ def run(args: argparse.Namespace) -> int:
         except ImportError as exc:
             raise ValueError(f"policy specs need the agents package (agents.registry): {exc}") from None
         for spec in args.policy:
+            print(f"  loading policy {spec}", flush=True)
             policies[spec] = resolve_policy(spec, cfg)
+    print(f"  rolling out ({time.perf_counter() - t0:.1f} s so far)", flush=True)
     report = evaluate_policies(policies, cfg, episodes=args.episodes, seed=args.seed)
     table = report.to_markdown()
+    if args.episodes == 1:  # no interval from one episode: do not announce one
+        table = table.replace("; ± = 95 % confidence interval (t).", " (one episode: no confidence interval).")
     print(table)
+    print(f"done in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     if args.json:
         atomic_write_text(args.json, json.dumps(report.to_json_dict(), indent=1))
         print(f"wrote {args.json}")

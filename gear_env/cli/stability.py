@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from .common import add_model_options, check_outputs, float_range, int_range, params_from_args
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -15,17 +17,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
             "doubling or a Neimark-Sacker (torus) bifurcation. Cached in $GEAR_ENV_CACHE or ~/.cache/gear-env."
         ),
     )
-    p.add_argument("--model", default="dynamic", choices=["constant", "dynamic"], help="backlash model")
-    p.add_argument("--omega-min", type=float, default=0.05, help="lowest omega (default 0.05)")
-    p.add_argument("--omega-max", type=float, default=3.0, help="highest omega (default 3.0)")
-    p.add_argument("--points", type=int, default=None, help="grid points (default 296: a step of 0.01)")
-    p.add_argument("--kappa", type=float, default=None, help="mesh-stiffness harmonic amplitude (default 0.2)")
     p.add_argument(
-        "--steps-per-period",
-        type=int,
-        default=None,
-        help="Newmark steps per mesh period (default 192, more below omega 0.27)",
+        "--omega-min", type=float_range(0.0, 1e3, lo_open=True), default=0.05, help="lowest omega (default 0.05)"
     )
+    p.add_argument(
+        "--omega-max", type=float_range(0.0, 1e3, lo_open=True), default=3.0, help="highest omega (default 3.0)"
+    )
+    p.add_argument(
+        "--points", type=int_range(2, 100_000), default=None, help="grid points (default 296: a step of 0.01)"
+    )
+    add_model_options(p)
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the cache (always compute)")
     p.add_argument("--json", metavar="PATH", help="write the map (grid, multipliers, labels, intervals) as JSON")
     p.add_argument("--plot", metavar="PATH", help="write a PNG of max|multiplier| and the multipliers over omega")
@@ -34,9 +35,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..analysis.stability import DEFAULT_POINTS, stability_map
-    from ..params import GearParams
 
-    params = GearParams() if args.kappa is None else GearParams(kappa=args.kappa)
+    params = params_from_args(args)
+    check_outputs(args, ("json", "plot"))
     m = stability_map(
         args.model,
         params,
