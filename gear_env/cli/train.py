@@ -16,6 +16,7 @@ from .common import int_range
 GEAR_ENV_ID = "GearSpeed-v0"
 MAX_NUM_ENVS = 1024  # the same bound as agents.ppo.MAX_NUM_ENVS (checked again there)
 MAX_TIMESTEPS = 10**12
+DEFAULT_NUM_ENVS = 16
 
 DESCRIPTION = (
     "Train SB3 PPO on GearSpeed-v0 (vector env, VecNormalize, checkpoints, --resume). Writes a run folder: "
@@ -36,8 +37,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--num-envs",
         type=int_range(1, MAX_NUM_ENVS),
-        default=16,
-        help=f"sub-environments in the vector env, 1-{MAX_NUM_ENVS} (default 16)",
+        default=None,
+        help=f"sub-environments in the vector env, 1-{MAX_NUM_ENVS} (default 16; with --resume the stored value)",
     )
     p.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0, help="random seed (default 0)")
     p.add_argument("--resume", action="store_true", help="continue RUN_DIR from its last checkpoint")
@@ -141,8 +142,11 @@ def options_from_args(args: argparse.Namespace) -> Any:
     explicit_env = bool(args.config or args.model or args.randomize_params or args.demand or args.set)
     env_id = args.env_id
     ppo = _kv(args.ppo, "--ppo")
+    num_envs = args.num_envs if args.num_envs is not None else DEFAULT_NUM_ENVS
     if args.resume:
         stored = RunFolder(args.out).read_config()
+        if args.num_envs is None:  # continue with the stored number of sub-environments
+            num_envs = int(stored.get("train", {}).get("num_envs", DEFAULT_NUM_ENVS))
         if not explicit_env:  # resume with the stored environment unless the user asked for something else
             env_cfg, env_id = dict(stored["env_config"]), stored["env_id"]
         ppo = {**dict(stored.get("ppo", {})), **ppo}  # stored hyper-parameters, explicit --ppo on top (checked)
@@ -151,7 +155,7 @@ def options_from_args(args: argparse.Namespace) -> Any:
         env_id=env_id,
         env_config=env_cfg,
         timesteps=args.timesteps,
-        num_envs=args.num_envs,
+        num_envs=num_envs,
         seed=args.seed,
         eval_freq=args.eval_freq,
         eval_episodes=args.eval_episodes,
