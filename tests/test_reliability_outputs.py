@@ -131,8 +131,11 @@ def tiny_disk(tmp_path):
 
 
 def test_a_full_disk_keeps_every_point_and_resume_writes_without_recomputing(tmp_path, tiny_disk, monkeypatch, capsys):
-    import gear_env.analysis.sweep as sw
+    import importlib
+
     from gear_env.analysis.results import SweepResult
+
+    sw = importlib.import_module("gear_env.analysis.sweep")  # the module (the package exports the function)
 
     ckpt = tmp_path / "sweep.ckpt.npz"
     if tiny_disk is not None:  # a real full disk: the NetCDF result does not fit in 32 KiB
