@@ -18,13 +18,10 @@ Definitions (per episode of ``max_steps`` steps):
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import sys
 import time
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -233,43 +230,7 @@ def plot(res: Mapping[str, Any], path: str, episodes_shown: int = 4) -> None:
     save_figure(fig, path)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m agents.report", description=__doc__.split("\n\n")[0])
-    p.add_argument(
-        "--policy", action="append", required=True, help="policy spec (agents.registry) or NAME=SPEC; repeatable"
-    )
-    p.add_argument("--config", help="environment settings JSON (default: GearSpeed-v0 defaults)")
-    p.add_argument("--episodes", type=int, default=20)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", required=True, help="output folder")
-    args = p.parse_args(argv)
-    import torch
+if __name__ == "__main__":  # pragma: no cover - the command line lives in gear_env/cli/report.py
+    from gear_env.cli.report import main
 
-    torch.set_num_threads(1)
-    from gear_env.io import atomic_write_text
-
-    from .envs import load_config_file
-    from .registry import resolve_policy
-
-    cfg = load_config_file(args.config) if args.config else {}
-    pols = {}
-    oracle = "oracle"
-    for item in args.policy:
-        name, spec = item.split("=", 1) if "=" in item else (item, item)
-        pols[name] = resolve_policy(spec, cfg)
-        if spec == "oracle":
-            oracle = name
-    res = compare(pols, cfg, episodes=args.episodes, seed=args.seed, oracle=oracle)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    md = to_markdown(res)
-    print(md)
-    atomic_write_text(out / "rl_report.md", md + "\n")
-    atomic_write_text(out / "rl_report.json", json.dumps(res, indent=1) + "\n")
-    plot(res, str(out / "rl_omega.png"))
-    print(f"wrote {out / 'rl_report.md'}, {out / 'rl_report.json'}, {out / 'rl_omega.png'}")
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

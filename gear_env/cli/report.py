@@ -1,0 +1,82 @@
+"""``python -m agents.report`` (and, once registered in ``COMMANDS``, ``gear-env report``): judge
+policies against the targets of the RL result (docs/RESULTS.md). The computation is
+:mod:`agents.report`; this module is its command line."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from .common import int_range
+
+DESCRIPTION = (
+    "Judge policies against the targets of the RL result: return vs the oracle, chaos once settled, settled "
+    "omega inside the stable window of the simulator's own stability map. Writes OUT/rl_report.md, "
+    "OUT/rl_report.json and OUT/rl_omega.png."
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The report's options."""
+    p.add_argument(
+        "--policy", action="append", required=True, help="policy spec (agents.registry) or NAME=SPEC; repeatable"
+    )
+    p.add_argument("--config", help="environment settings JSON (default: GearSpeed-v0 defaults)")
+    p.add_argument("--episodes", type=int_range(1, 100_000), default=20, help="episodes per policy (default 20)")
+    p.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0, help="seed of the first episode (default 0)")
+    p.add_argument("--out", required=True, help="output folder")
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("report", help="judge policies against the RL targets", description=DESCRIPTION)
+    add_arguments(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import torch
+
+    from agents.envs import load_config_file
+    from agents.registry import resolve_policy
+    from agents.report import compare, plot, to_markdown
+
+    from ..io import atomic_write_text
+
+    torch.set_num_threads(1)
+    cfg = load_config_file(args.config) if args.config else {}
+    pols = {}
+    oracle = "oracle"
+    for item in args.policy:
+        name, spec = item.split("=", 1) if "=" in item else (item, item)
+        pols[name] = resolve_policy(spec, cfg)
+        if spec == "oracle":
+            oracle = name
+    print(f"rolling out {len(pols)} policies x {args.episodes} episodes", flush=True)
+    res = compare(pols, cfg, episodes=args.episodes, seed=args.seed, oracle=oracle)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    md = to_markdown(res)
+    print(md)
+    atomic_write_text(out / "rl_report.md", md + "\n")
+    atomic_write_text(out / "rl_report.json", json.dumps(res, indent=1) + "\n")
+    plot(res, str(out / "rl_omega.png"))
+    print(f"wrote {out / 'rl_report.md'}, {out / 'rl_report.json'}, {out / 'rl_omega.png'}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``python -m agents.report``; exit code 2 on a usage or input error."""
+    p = argparse.ArgumentParser(prog="python -m agents.report", description=DESCRIPTION)
+    add_arguments(p)
+    args = p.parse_args(argv)
+    try:
+        return run(args)
+    except (ValueError, OSError) as exc:
+        print(f"report: error: {exc}", file=sys.stderr)
+        return 2
+
+
+__all__ = ["add_arguments", "add_parser", "main", "run"]
