@@ -14,14 +14,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from .. import kernels as K
-from ..simulator import Trajectory
 from .common import new_figure
+
+if TYPE_CHECKING:  # annotations only: the plots take a Trajectory, they do not simulate
+    from ..simulator import Trajectory
 
 MODEL_STYLE = {
     "constant": dict(color="tab:blue", label="constant backlash"),

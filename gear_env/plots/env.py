@@ -31,10 +31,12 @@ BAND_LABELS = {
 
 
 def draw_bands(ax: Any, bands: Any, horizontal: bool = True) -> None:
-    """Shade the regime bands (a :class:`gear_env.evaluation.RegimeBands`) across omega.
+    """Shade the regime bands (a :class:`gear_env.bands.RegimeBands`) across omega.
 
-    ``horizontal=True`` shades horizontal strips (omega on the y axis).
+    ``horizontal=True`` shades horizontal strips (omega on the y axis). ``bands=None`` draws nothing.
     """
+    if bands is None:
+        return
     seen = set()
     for kind, intervals in bands.bands.items():
         color = BAND_COLORS.get(kind, "#dddddd")
@@ -47,21 +49,23 @@ def draw_bands(ax: Any, bands: Any, horizontal: bool = True) -> None:
                 ax.axvspan(lo, hi, color=color, lw=0, label=label, zorder=0)
 
 
-class EnvRenderer:
+class EnvFrame:
     """Draws the env frame: omega history over the regime bands, the Poincare window, contact state.
 
+    It draws what it is given; :class:`gear_env.render.EnvRenderer` (what ``env.render()`` uses)
+    fetches the bands of the environment's configuration and hands them over.
+
     Args:
-        config: the env's :class:`GearSpeedConfig` (bands come from
-            :func:`gear_env.evaluation.regime_bands`, computed once and cached).
+        config: the env's settings (an object with ``omega_min``, ``omega_max``, ``max_steps``,
+            ``periods_per_step``, e.g. :class:`gear_env.env_config.GearSpeedConfig`).
+        bands: regime bands to shade (a :class:`gear_env.bands.RegimeBands`), or None for none.
         human: show the figure in a matplotlib window (pyplot) instead of off-screen.
     """
 
-    def __init__(self, config: Any, human: bool = False):
-        from ..evaluation import regime_bands
-
+    def __init__(self, config: Any, bands: Any = None, human: bool = False):
         self.config = config
         self.human = human
-        self.bands = regime_bands(config, points=30)
+        self.bands = bands
         if human:
             import matplotlib.pyplot as plt
 
@@ -176,4 +180,4 @@ def plot_steady_reward(maps: dict[str, Any]):
     return fig
 
 
-__all__ = ["EnvRenderer", "draw_bands", "plot_evaluation", "plot_steady_reward"]
+__all__ = ["EnvFrame", "draw_bands", "plot_evaluation", "plot_steady_reward"]

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..simulator import Trajectory
 from .common import new_figure
+
+if TYPE_CHECKING:  # annotations only: the plots take a Trajectory, they do not simulate
+    from ..simulator import Trajectory
 
 
 def plot_trajectory(traj: Trajectory, channel: str = "delta", last_periods: int = 20) -> Figure:
