@@ -98,7 +98,11 @@ def _bands_from_stability_module(cfg: GearSpeedConfig) -> RegimeBands | None:
             lo, hi = max(lo, cfg.omega_min), min(hi, cfg.omega_max)
             if hi > lo:
                 bands.setdefault(str(label), []).append((float(lo), float(hi)))
-        return RegimeBands(bands, source=f"Floquet map of period-1 ({cfg.model}, shipped)") if bands else None
+        return (
+            RegimeBands(bands, source=f"shipped Floquet map of the period-1 orbit, {cfg.model} backlash")
+            if bands
+            else None
+        )
     except Exception:
         return None
 

@@ -1,4 +1,5 @@
-"""Shared plotting helpers: a non-interactive backend and atomic saving."""
+"""Shared plotting helpers: a non-interactive backend, atomic saving, and the labels every figure
+uses (mathtext symbols with units, so that the figures say the same thing the same way)."""
 
 from __future__ import annotations
 
@@ -9,9 +10,21 @@ import matplotlib
 if not os.environ.get("MPLBACKEND"):
     matplotlib.use("Agg")
 
+from typing import Any  # noqa: E402
+
+from matplotlib import ticker  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from ..io import atomic_write  # noqa: E402
+
+B0 = "$b_0$"
+"""Unit of displacements: half the nominal backlash b0 (Delta, U, B_d, X, Y are divided by it)."""
+OMEGA = r"$\omega = \Omega/\omega_n$"
+"""Axis label of the meshing frequency ratio (mesh frequency over the natural frequency)."""
+S_DEF = r"$s = \omega_n t$"
+"""Definition of the natural time s that the velocities are taken against."""
+LYAPUNOV = r"largest Lyapunov exponent $\lambda_1$" + "\n" + r"[per unit of $\omega_n t$]"
+"""Axis label of the largest Lyapunov exponent (rate per unit natural time)."""
 
 
 def new_figure(width: float = 10.0, height: float = 6.0) -> Figure:
@@ -22,3 +35,10 @@ def new_figure(width: float = 10.0, height: float = 6.0) -> Figure:
 def save_figure(fig: Figure, path: str, dpi: int = 110) -> None:
     """Save ``fig`` as PNG to ``path`` atomically (the old file survives a failure)."""
     atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format="png"))
+
+
+def plain_log_ticks(ax: Any, axis: str = "y") -> None:
+    """Label a log axis with plain numbers (0.5, 2, 30) instead of matplotlib's ``2x10^0``."""
+    a = ax.yaxis if axis == "y" else ax.xaxis
+    a.set_major_formatter(ticker.LogFormatter())
+    a.set_minor_formatter(ticker.LogFormatter(labelOnlyBase=False, minor_thresholds=(1, 0.4)))
