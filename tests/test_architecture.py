@@ -211,3 +211,33 @@ def test_plots_take_data(graph):
         if not any(t == a or t.startswith(a + ".") for a in PLOTS_MAY_IMPORT)
     )
     assert not bad, "plots import modules that compute (pass them the results instead):\n" + "\n".join(bad)
+
+
+def test_evaluation_keeps_its_public_names_and_command(capsys):
+    """The split of ``gear_env.evaluation`` by concern kept every name it exported, and
+    ``python -m gear_env.evaluation`` is the command-line layer's steady-map command."""
+    import gear_env.evaluation as ev
+    from gear_env import bands, episodes, report, steady_map
+    from gear_env.cli import steady
+
+    old = {"INFO_KEYS", "EpisodeResult", "EvaluationReport", "RegimeBands", "SteadyRewardMap", "METRICS"}
+    old |= {"evaluate_policies", "regime_bands", "run_episode", "steady_reward_map", "main"}
+    assert old <= set(dir(ev)) and set(ev.__all__) <= old
+    assert ev.steady_reward_map is steady_map.steady_reward_map and ev.regime_bands is bands.regime_bands
+    assert ev.evaluate_policies is episodes.evaluate_policies and ev.EvaluationReport is report.EvaluationReport
+    with pytest.raises(SystemExit) as exc:
+        ev.main(["--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    assert "python -m gear_env.evaluation" in out and "--steps-per-period" in out
+    assert steady.build_parser().parse_args(["--models", "constant"]).models == "constant"
+
+
+def test_sb3_adapter_is_not_reexported_from_vector_env():
+    """The lazy re-export closed a cycle; the old import now says where the class lives."""
+    import gear_env.vector_env as ve
+
+    with pytest.raises(ImportError, match="gear_env.sb3_adapter"):
+        ve.SB3VecEnvAdapter  # noqa: B018
+    with pytest.raises(AttributeError):
+        ve.no_such_name  # noqa: B018

@@ -109,7 +109,7 @@ class EnvFrame:
         state = "teeth in contact"
         if len(history):
             state = f"contact loss {history[-1, 2]:.0%}, c = {history[-1, 1]:.2f}"
-        ax3.set_title(f"Poincaré section, last {len(poincare)} mesh periods\n{state}", fontsize=8)
+        ax3.set_title(f"Poincaré section ({len(poincare)} periods)\n{state}", fontsize=8)
         if self.human:
             fig.canvas.draw_idle()
             fig.canvas.flush_events()

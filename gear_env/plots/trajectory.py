@@ -54,7 +54,7 @@ def plot_trajectory(traj: Trajectory, channel: str = "delta", last_periods: int 
     axs[2].plot(px, pdx, ".", ms=3)
     axs[2].set_xlabel(f"${sym}$ [{B0}]")
     axs[2].set_ylabel(f"$d{sym}/ds$ [{B0}]")
-    axs[2].set_title(f"Poincaré map, once per mesh period ({len(px)} points)", fontsize=10)
+    axs[2].set_title(f"Poincaré map\n{len(px)} points, one per mesh period", fontsize=10)
     for arr, setter in ((px, axs[2].set_xlim), (pdx, axs[2].set_ylim)):
         lo, hi = float(np.min(arr)), float(np.max(arr))
         if hi - lo < 1e-3:  # a periodic orbit: do not blow round-off up to the full axis
