@@ -116,6 +116,24 @@ def _check_labels(fig) -> list[str]:
     return bad
 
 
+def _draw(fig):
+    """Draw ``fig`` on an Agg canvas (runs the constrained layout); returns the renderer."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    return canvas.get_renderer()
+
+
+def _overlapping_boxes(fig) -> list[str]:
+    """Figure-level legends and the title that overlap each other once drawn."""
+    r = _draw(fig)
+    boxes = [(f"legend {i}", leg.get_window_extent(r)) for i, leg in enumerate(fig.legends)]
+    if fig._suptitle is not None:
+        boxes.append(("title", fig._suptitle.get_window_extent(r)))
+    return [f"{a} / {b}" for i, (a, ba) in enumerate(boxes) for b, bb in boxes[i + 1 :] if ba.overlaps(bb)]
+
+
 def _fake_report():
     from types import SimpleNamespace
 
@@ -164,11 +182,22 @@ def test_figure_labels_use_symbols_and_units(runs):
     }
     bad = {name: _check_labels(fig) for name, fig in figs.items()}
     assert not any(bad.values()), bad
+    clash = {name: _overlapping_boxes(fig) for name, fig in figs.items()}
+    assert not any(clash.values()), clash
     # velocities name their unit and say what s is; the Poincaré axes say how often they sample
     texts = " ".join(_texts(figs["phase portraits"]))
     assert "$b_0$" in texts and r"$s = \omega_n t$" in texts and "once per mesh period" in texts
     traj = _texts(figs["trajectory"])
     assert any("transmission error" in t for t in traj) and any("B_d" in t for t in traj)  # legend: both curves
+
+
+def test_overlap_checker_catches_a_legend_on_the_title():
+    fig = Figure(layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot([0, 1], label="a curve with a long label")
+    fig.suptitle("a title long enough to meet the legend")
+    fig.legend(loc="upper center")
+    assert _overlapping_boxes(fig) == ["legend 0 / title"]
 
 
 def test_figure_texts_checker_catches_ascii_labels():
@@ -192,7 +221,7 @@ def test_evaluation_figure_states_rate_limit_and_reads_log_ticks_plainly():
 
     rep = _fake_report()
     fig = plot_evaluation(rep, RegimeBands({"stable": [(0.5, 1.5)]}, "steady_reward_map"))
-    fig.canvas.draw()
+    _draw(fig)
     top, bottom = fig.axes[:2]
     assert any(f"at most {rep.config.max_domega:g} per step" in t.get_text() for t in top.texts)
     labels = [t.get_text() for t in bottom.yaxis.get_ticklabels(minor=True) + bottom.yaxis.get_ticklabels()]
@@ -223,7 +252,7 @@ def test_poincare_map_of_a_periodic_orbit_is_not_blown_up_to_round_off():
     ax = fig.axes[1]
     lo, hi = ax.get_ylim()
     assert hi - lo >= 0.1 - 1e-12
-    fig.canvas.draw()
+    _draw(fig)
     assert ax.yaxis.get_offset_text().get_text() == ""
 
 

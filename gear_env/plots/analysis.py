@@ -76,10 +76,24 @@ def plot_time_histories(
         unit = "deg" if channel == "psi" else B0
         ax.set_ylabel(f"{_chan_tex(channel)} [{unit}]")
         ax.ticklabel_format(axis="y", useOffset=False)
+        _flat_at_round_off(ax, 1.0 if channel == "psi" else 0.05)
     axs[-1].set_xlabel("time [mesh periods]")
     # above the panels, so that it covers no curve
     fig.legend(*axs[0].get_legend_handles_labels(), loc="outside upper center", ncols=4, fontsize=8, frameon=False)
     return fig
+
+
+def _flat_at_round_off(ax: Any, window: float) -> None:
+    """An axis whose curves are constant to round-off shows +-window around them (not ticks such as
+    20.00000000002) and says so."""
+    ys = [np.asarray(line.get_ydata(), float) for line in ax.lines]
+    if not ys:
+        return
+    lo, hi = min(float(y.min()) for y in ys), max(float(y.max()) for y in ys)
+    mid = 0.5 * (lo + hi)
+    if hi - lo <= 1e-9 * max(1.0, abs(mid)):
+        ax.set_ylim(mid - window, mid + window)
+        ax.text(0.01, 0.04, f"constant at {mid:.6g} to round-off", transform=ax.transAxes, fontsize=8)
 
 
 def _sorted(sw: Any) -> tuple[np.ndarray, np.ndarray]:

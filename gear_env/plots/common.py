@@ -3,6 +3,7 @@ uses (mathtext symbols with units, so that the figures say the same thing the sa
 
 from __future__ import annotations
 
+import math
 import os
 
 import matplotlib
@@ -37,8 +38,27 @@ def save_figure(fig: Figure, path: str, dpi: int = 110) -> None:
     atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format="png"))
 
 
+class _PlainLogFormatter(ticker.Formatter):
+    """Log-axis tick labels as plain numbers (0.01, 2, 30); minor ticks labelled at 2, 3 and 5
+    when the axis spans less than 1.5 decades, else not at all."""
+
+    def __init__(self, minor: bool):
+        self.minor = minor
+
+    def __call__(self, x: float, pos: int | None = None) -> str:
+        if not x > 0:
+            return ""
+        if self.minor:
+            lo, hi = sorted(abs(v) for v in self.axis.get_view_interval())
+            if lo <= 0 or hi / lo > 10**1.5:
+                return ""
+            if round(x / 10 ** math.floor(math.log10(x) + 1e-9)) not in (2, 3, 5):
+                return ""
+        return f"{x:g}"
+
+
 def plain_log_ticks(ax: Any, axis: str = "y") -> None:
-    """Label a log axis with plain numbers (0.5, 2, 30) instead of matplotlib's ``2x10^0``."""
+    """Label a log axis with plain numbers (0.01, 2, 30) instead of matplotlib's ``2x10^0``."""
     a = ax.yaxis if axis == "y" else ax.xaxis
-    a.set_major_formatter(ticker.LogFormatter())
-    a.set_minor_formatter(ticker.LogFormatter(labelOnlyBase=False, minor_thresholds=(1, 0.4)))
+    a.set_major_formatter(_PlainLogFormatter(minor=False))
+    a.set_minor_formatter(_PlainLogFormatter(minor=True))

@@ -201,8 +201,8 @@ def plot_steady_reward(maps: dict[str, Any]):
     ax.axhline(0, color="0.6", lw=0.6)
     ax.set_ylabel("steady reward per step")
     fig.suptitle("GearSpeed-v0: steady reward of holding $\\omega$ constant (default weights)", fontsize=10)
-    # above the panels: inside, the legend covered the dips of the curves
-    fig.legend(*ax.get_legend_handles_labels(), loc="outside upper center", ncols=2, fontsize=7, frameon=False)
+    # below the panels: inside, the legend covered the dips of the curves
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=7, frameon=False)
     styles = [
         Line2D([], [], color="k", ls="-", lw=1.2, label="chaos indicator c"),
         Line2D([], [], color="k", ls="--", lw=1.0, label="contact-loss fraction"),
