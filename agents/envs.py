@@ -128,7 +128,7 @@ def make_sb3_vec_env(env_id: str, cfg: Any, num_envs: int, seed: int | None) -> 
 
 
 def _gear_sb3_vec_env(config: Any, num_envs: int) -> Any:
-    from gear_env.vector_env import SB3VecEnvAdapter
+    from gear_env.sb3_adapter import SB3VecEnvAdapter
 
     return SB3VecEnvAdapter(num_envs=num_envs, config=config)
 

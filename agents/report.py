@@ -19,7 +19,6 @@ Definitions (per episode of ``max_steps`` steps):
 from __future__ import annotations
 
 import math
-import sys
 import time
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -228,9 +227,3 @@ def plot(res: Mapping[str, Any], path: str, episodes_shown: int = 4) -> None:
         fontsize=9,
     )
     save_figure(fig, path)
-
-
-if __name__ == "__main__":  # pragma: no cover - the command line lives in gear_env/cli/report.py
-    from gear_env.cli.report import main
-
-    sys.exit(main())

@@ -37,7 +37,8 @@ def main(argv: list[str] | None = None) -> int:
         return lyapunov_study()
 
     from gear_env.analysis import sweep, sweep_many
-    from gear_env.analysis.executors import local_pool, start_workers, warm_numba_cache
+    from gear_env.analysis.executors import local_pool, start_workers
+    from gear_env.analysis.sweep import warm_numba_cache
 
     grid = np.linspace(0.05, 3.0, args.points)
     common = dict(transient=args.transient, periods=args.periods, lyapunov=True)
@@ -68,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"1 worker  both, no Lyapunov: {t_nol:6.1f} s (Lyapunov adds {100 * (t_serial / t_nol - 1):.0f} %)")
 
     t = time.perf_counter()
-    pool = local_pool(args.workers)
+    pool = local_pool(args.workers, warm_numba_cache)
     start_workers(pool, args.workers)
     print(f"pool start-up with {args.workers} workers (excluded): {time.perf_counter() - t:.1f} s")
     pids = list(getattr(pool, "_processes", {}) or {})

@@ -97,12 +97,12 @@ def main() -> None:
         fig, ax = plt.subplots(figsize=(5.2, 4.4))
         ext = [anchor[4] - args.span, anchor[4] + args.span, anchor[9] - args.span, anchor[9] + args.span]
         ax.imshow(img, origin="lower", extent=ext, aspect="auto", cmap="coolwarm_r", vmin=0, vmax=1)
-        ax.plot(anchor[4], anchor[9], "k+", ms=10, label="Poincare point of the quiet motion")
-        ax.set_xlabel("U at the start [b0]")
-        ax.set_ylabel("U' at the start [b0 per unit natural time]")
+        ax.plot(anchor[4], anchor[9], "k+", ms=10, label="Poincaré point of the quiet motion")
+        ax.set_xlabel("$U$ at the start [$b_0$]")
+        ax.set_ylabel("$dU/ds$ at the start [$b_0$],  $s = \\omega_n t$")
         ax.set_title(
-            f"omega = {args.omega}, {settle} periods: blue = stays quiet "
-            f"({amps['quiet']:.3f} b0), red = loud ({amps['loud']:.2f} b0)",
+            f"$\\omega$ = {args.omega}, after {settle} mesh periods: blue = stays quiet "
+            f"(amplitude of $U$ {amps['quiet']:.3f} $b_0$),\nred = ends on the loud motion ({amps['loud']:.2f} $b_0$)",
             fontsize=8,
         )
         ax.legend(fontsize=7, loc="upper right")

@@ -195,7 +195,7 @@ class GearSpeedEnv(gym.Env):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
             return None
-        from .plots.env import EnvRenderer
+        from .render import EnvRenderer
 
         if self._renderer is None:
             self._renderer = EnvRenderer(self.config, human=self.render_mode == "human")

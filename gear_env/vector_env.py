@@ -5,7 +5,7 @@
   ``gym.make_vec("GearSpeed-v0", num_envs=N)``).
   Sub-env ``i`` has its own random generator, seeded with ``seed + i`` by ``reset(seed=seed)``, so
   it reproduces a single :class:`~gear_env.env.GearSpeedEnv` reset with ``seed + i`` exactly.
-* ``SB3VecEnvAdapter`` (in :mod:`gear_env.sb3_adapter`, also importable from here) - presents the
+* ``SB3VecEnvAdapter`` (in :mod:`gear_env.sb3_adapter`, which imports this module) - presents the
   same batch engine to stable-baselines3 (which accepts only its own ``VecEnv``): auto-reset inside
   ``step_wait``, ``terminal_observation`` and ``TimeLimit.truncated`` in the infos.
 """
@@ -209,7 +209,7 @@ class GearSpeedVectorEnv(VectorEnv):
         if self.render_mode is None:
             gym.logger.warn("render() called without render_mode='rgb_array'")
             return None
-        from .plots.env import EnvRenderer
+        from .render import EnvRenderer
 
         if self._renderer is None:
             self._renderer = EnvRenderer(self.config, human=False)
@@ -227,12 +227,12 @@ class GearSpeedVectorEnv(VectorEnv):
 
 
 def __getattr__(name: str) -> Any:
-    """Lazy access to :class:`gear_env.sb3_adapter.SB3VecEnvAdapter` (imports stable-baselines3 and
-    torch only when asked for)."""
+    """``SB3VecEnvAdapter`` lives in :mod:`gear_env.sb3_adapter` only (it builds on this module;
+    a re-export here made an import cycle)."""
     if name == "SB3VecEnvAdapter":
-        from .sb3_adapter import SB3VecEnvAdapter
-
-        return SB3VecEnvAdapter
+        raise ImportError(
+            "SB3VecEnvAdapter is in gear_env.sb3_adapter: from gear_env.sb3_adapter import SB3VecEnvAdapter"
+        )
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

@@ -72,7 +72,7 @@ def test_predict_is_batch_aware_and_resets_per_env():
 def test_works_with_sb3_evaluate_policy():
     from stable_baselines3.common.evaluation import evaluate_policy
 
-    from gear_env.vector_env import SB3VecEnvAdapter
+    from gear_env.sb3_adapter import SB3VecEnvAdapter
 
     cfg = dict(FAST, max_steps=10)
     venv = SB3VecEnvAdapter(2, seed=0, **cfg)

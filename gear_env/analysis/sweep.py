@@ -531,6 +531,28 @@ def _plan(job: _Job, n_chunks: int) -> list[tuple[int, int, np.ndarray | None, b
     return todo
 
 
+_WARM = False
+
+
+def warm_numba_cache() -> None:
+    """Compile/load every kernel a sweep uses (tiny inputs); idempotent per process.
+
+    Run in the parent before a local pool starts and in each worker as its initializer
+    (:func:`gear_env.analysis.executors.get_executor`'s ``warm``), so the workers only read the
+    on-disk numba cache and never race to write it.
+    """
+    global _WARM
+    if _WARM:
+        return
+    p = GearParams()
+    for model in ("constant", "dynamic"):
+        x = np.zeros(10)
+        K.static_equilibrium(p.consts, model_code(model), 0.0, x)
+        lyapunov_record(x, 1.0, 4, 8, p.consts, model_code(model), 1e-8)
+        run_point(SweepConfig(model, "forward", 1, 4, p, 8, False, False, max_extend=0), 1.0, None)
+    _WARM = True
+
+
 def _run_parallel(
     jobs: list[_Job],
     bar: _Progress,
@@ -544,7 +566,7 @@ def _run_parallel(
 
     from .executors import get_executor
 
-    with get_executor(executor, workers, scheduler) as ex:
+    with get_executor(executor, workers, scheduler, warm=warm_numba_cache) as ex:
         pending: dict[Any, tuple[str, int, Any]] = {}
 
         def submit_chunk(jid: int, first: int, stop: int, state: np.ndarray | None) -> None:

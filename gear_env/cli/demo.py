@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         )
     smap = default_stability_map("dynamic")
     path = os.path.join(args.out, "stability_dynamic.png")
-    save_figure(plot_stability_map(smap, title="period-1 orbit stability (dynamic model)"), path)
+    save_figure(plot_stability_map(smap), path)
     stable = ", ".join(f"[{a:.2f}, {b:.2f}]" for a, b in smap.stable_intervals())
     print(f"\n2. Floquet stability map of the period-1 orbit: stable on {stable}  -> {path}")
 

@@ -133,7 +133,8 @@ def generate_figures(
     if p.friction == 0.0:  # the documented extension that makes psi fluctuate (docs/RESULTS.md)
         pf = p.replace(friction=EXTENSION_FRICTION)
         fr = {w: simulate(w, "dynamic", s.history_periods * 10, s.transient, s.steps_per_period, pf) for w in (1, 2, 3)}
-        fig = pa.plot_time_histories({f"dynamic, friction mu={EXTENSION_FRICTION:g}": fr}, "psi", s.history_periods)
+        lab = f"dynamic backlash, tooth friction $\\mu$ = {EXTENSION_FRICTION:g}"
+        fig = pa.plot_time_histories({lab: fr}, "psi", s.history_periods)
         save(fig, "fig06b_meshing_angle_friction.png")
     for m in MODELS:
         save(pa.plot_phase_portraits(runs[m], title=f"{m} backlash"), f"fig08_phase_{m}.png")

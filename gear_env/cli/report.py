@@ -1,4 +1,4 @@
-"""``python -m agents.report`` (and, once registered in ``COMMANDS``, ``gear-env report``): judge
+"""``gear-env report`` (also ``python -m gear_env.cli.report``): judge
 policies against the targets of the RL result (docs/RESULTS.md). The computation is
 :mod:`agents.report`; this module is its command line."""
 
@@ -80,3 +80,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 __all__ = ["add_arguments", "add_parser", "main", "run"]
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

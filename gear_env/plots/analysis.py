@@ -3,7 +3,7 @@
 Every function takes results objects and returns a ``matplotlib.figure.Figure`` (not attached to
 pyplot); :func:`gear_env.plots.common.save_figure` writes it atomically. Units: displacements in b0
 (half backlash), omega = Omega/omega_n, psi in degrees, frequencies in multiples of the mesh
-frequency, Lyapunov exponents per unit natural time omega_n t.
+frequency, velocities dDelta/ds and Lyapunov exponents per unit natural time s = omega_n t.
 
 Sweep arguments are any object with the attributes of
 :class:`gear_env.analysis.results.SweepResult` (``omega``, ``regime``, ``poincare`` (n, periods,
@@ -14,14 +14,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from .. import kernels as K
-from ..simulator import Trajectory
-from .common import new_figure
+from .common import B0, LYAPUNOV, OMEGA, S_DEF, new_figure, plain_log_ticks
+
+if TYPE_CHECKING:  # annotations only: the plots take a Trajectory, they do not simulate
+    from ..simulator import Trajectory
 
 MODEL_STYLE = {
     "constant": dict(color="tab:blue", label="constant backlash"),
@@ -71,11 +73,27 @@ def plot_time_histories(
             t = (tr.phase[-k:] - tr.phase[-k]) / (2 * np.pi)
             ax.plot(t, y, lw=1.0, **_style(model))
         ax.set_title(f"$\\omega$ = {w:g}", fontsize=10)
-        ax.set_ylabel({"bd": "$B_d$ [b0]", "psi": "$\\psi$ [deg]", "delta": "$\\Delta$ [b0]"}.get(channel, channel))
+        unit = "deg" if channel == "psi" else B0
+        ax.set_ylabel(f"{_chan_tex(channel)} [{unit}]")
         ax.ticklabel_format(axis="y", useOffset=False)
+        _flat_at_round_off(ax, 1.0 if channel == "psi" else 0.05)
     axs[-1].set_xlabel("time [mesh periods]")
-    axs[0].legend(loc="upper right", fontsize=8)
+    # above the panels, so that it covers no curve
+    fig.legend(*axs[0].get_legend_handles_labels(), loc="outside upper center", ncols=4, fontsize=8, frameon=False)
     return fig
+
+
+def _flat_at_round_off(ax: Any, window: float) -> None:
+    """An axis whose curves are constant to round-off shows +-window around them (not ticks such as
+    20.00000000002) and says so."""
+    ys = [np.asarray(line.get_ydata(), float) for line in ax.lines]
+    if not ys:
+        return
+    lo, hi = min(float(y.min()) for y in ys), max(float(y.max()) for y in ys)
+    mid = 0.5 * (lo + hi)
+    if hi - lo <= 1e-9 * max(1.0, abs(mid)):
+        ax.set_ylim(mid - window, mid + window)
+        ax.text(0.01, 0.04, f"constant at {mid:.6g} to round-off", transform=ax.transAxes, fontsize=8)
 
 
 def _sorted(sw: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -104,7 +122,7 @@ def plot_amplitude_frequency(
             if ch == "psi":
                 a = np.degrees(a)
             ax.plot(w, a, marker=".", ms=2.5, label=lab, **styles[k % len(styles)])
-        unit = "deg" if ch == "psi" else "b0"
+        unit = "deg" if ch == "psi" else B0
         ax.set_ylabel(f"amplitude of {_chan_tex(ch)} [{unit}]")
         top = max(float(np.max(np.abs(np.asarray(sw.amplitude[ch])))) for sw in sweeps.values())
         if ch == "psi" and top < 1e-12:
@@ -113,7 +131,7 @@ def plot_amplitude_frequency(
             ax.text(
                 0.5,
                 0.5,
-                "psi - alpha0 stays at round-off level (< 1e-13 deg):\nno force moves the centres "
+                "$\\psi - \\alpha_0$ stays at round-off level (< $10^{-13}$ deg):\nno force moves the centres "
                 "off the line of action\n(see docs/RESULTS.md; GearParams.friction > 0 changes this)",
                 transform=ax.transAxes,
                 ha="center",
@@ -122,9 +140,10 @@ def plot_amplitude_frequency(
             )
         elif ch != "psi":
             ax.set_yscale("log")
+            plain_log_ticks(ax)
         ax.grid(alpha=0.3)
-    axs[0].legend(fontsize=8)
-    axs[-1].set_xlabel("$\\omega = \\Omega/\\omega_n$")
+    axs[0].legend(fontsize=8, title="sweep direction", title_fontsize=8)
+    axs[-1].set_xlabel(OMEGA)
     return fig
 
 
@@ -134,6 +153,11 @@ def _chan_tex(ch: str) -> str:
 
 def plot_phase_portraits(runs: Mapping[float, Trajectory], title: str = "") -> Figure:
     """Phase portraits (Delta, dDelta/ds) and Poincare maps at several omegas (paper Fig. 8).
+
+    Delta and dDelta/ds in b0 (s = omega_n t, natural time); the Poincare map samples the motion
+    once per mesh period (mesh phase 2 pi k). A dotted line marks the mean dynamic backlash B_d
+    (the contact edge Delta = B_d). A Poincare map whose points coincide to round-off (a period-1
+    orbit) is shown on a +-0.05 window rather than blown up to its round-off spread.
 
     Args:
         runs: {omega: Trajectory} (one column per omega).
@@ -149,17 +173,31 @@ def plot_phase_portraits(runs: Mapping[float, Trajectory], title: str = "") -> F
         d, dd = tr["delta"], tr["ddelta"]
         axs[0, j].plot(d, dd, lw=0.3, color="tab:blue")
         axs[0, j].set_title(f"$\\omega$ = {w:g}", fontsize=10)
-        axs[0, j].set_xlabel("$\\Delta$ [b0]")
         n = tr.steps_per_period
-        axs[1, j].plot(d[n::n], dd[n::n], ".", ms=2.0, color="tab:red")
-        axs[1, j].set_xlabel("$\\Delta$ [b0]")
+        pd, pdd = d[n::n], dd[n::n]
+        axs[1, j].plot(pd, pdd, ".", ms=2.0, color="tab:red")
+        _zoom_round_off(axs[1, j], pd, pdd)
         for ax in axs[:, j]:
-            ax.axvline(tr["bd"].mean(), color="k", lw=0.5, ls=":")
-    axs[0, 0].set_ylabel("phase portrait  $d\\Delta/ds$")
-    axs[1, 0].set_ylabel("Poincare map  $d\\Delta/ds$")
-    if title:
-        fig.suptitle(title)
+            ax.axvline(tr["bd"].mean(), color="k", lw=0.5, ls=":", label="mean $B_d$ (contact edge)")
+            ax.set_xlabel(f"$\\Delta$ [{B0}]")
+    axs[0, 0].set_ylabel(f"phase portrait\n$d\\Delta/ds$ [{B0}]")
+    axs[1, 0].set_ylabel(f"Poincaré map (once per mesh period)\n$d\\Delta/ds$ [{B0}]")
+    handles, labels = axs[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", fontsize=8, frameon=False)
+    fig.suptitle((f"{title}; " if title else "") + f"velocity $d\\Delta/ds$ in natural time {S_DEF}")
     return fig
+
+
+def _zoom_round_off(ax: Any, x: np.ndarray, y: np.ndarray, window: float = 0.05) -> None:
+    """Keep a Poincare map whose points agree to round-off on a +-window range (not the spread)."""
+    if x.size == 0:
+        return
+    for arr, setter in ((x, ax.set_xlim), (y, ax.set_ylim)):
+        lo, hi = float(np.min(arr)), float(np.max(arr))
+        if hi - lo < 1e-3:
+            mid = 0.5 * (hi + lo)
+            setter(mid - window, mid + window)
+    ax.ticklabel_format(useOffset=False)
 
 
 def plot_amplitude_vs_omega(sweeps: Mapping[str, Any], channel: str = "U") -> Figure:
@@ -174,8 +212,8 @@ def plot_amplitude_vs_omega(sweeps: Mapping[str, Any], channel: str = "U") -> Fi
     for model, sw in sweeps.items():
         w, o = _sorted(sw)
         ax.plot(w, np.asarray(sw.amplitude[channel])[o], marker=".", ms=2.5, lw=1.0, **_style(model))
-    ax.set_xlabel("$\\omega = \\Omega/\\omega_n$")
-    ax.set_ylabel(f"amplitude of {_chan_tex(channel)} [b0]")
+    ax.set_xlabel(OMEGA)
+    ax.set_ylabel(f"amplitude of {_chan_tex(channel)} [{B0}]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return fig
@@ -194,8 +232,8 @@ def plot_waterfall(wf: Any, title: str = "") -> Figure:
     for i, w in enumerate(wf.omega):
         ax.plot(f, np.full_like(f, w), amp[i], lw=0.6, color="tab:blue")
     ax.set_xlabel("frequency / mesh frequency")
-    ax.set_ylabel("$\\omega$")
-    ax.set_zlabel(f"amplitude of {_chan_tex(wf.channel)} [b0]")
+    ax.set_ylabel(OMEGA)
+    ax.set_zlabel(f"amplitude of {_chan_tex(wf.channel)} [{B0}]")
     ax.view_init(elev=28, azim=-60)
     if title:
         ax.set_title(title)
@@ -217,15 +255,26 @@ def plot_bifurcation(sweeps: Mapping[str, Any], column: int = K.PC_DELTA) -> Fig
         w = np.repeat(np.asarray(sw.omega, dtype=float), pc.shape[1])
         ax.plot(w, pc[:, :, column].ravel(), ",", color="k", alpha=0.6, rasterized=True)
         ax.set_title(name, fontsize=10)
-        ax.set_ylabel("$\\Delta$ at $\\phi = 2\\pi k$ [b0]" if column == K.PC_DELTA else f"column {column}")
-    axs[-1].set_xlabel("$\\omega = \\Omega/\\omega_n$")
+        ylab = f"Poincaré samples of $\\Delta$ [{B0}]\n(mesh phase $2\\pi k$)"
+        ax.set_ylabel(ylab if column == K.PC_DELTA else f"Poincaré column {column}")
+    axs[-1].set_xlabel(OMEGA)
     return fig
+
+
+LABEL_NAMES = {
+    "stable": "stable",
+    "period-doubling": "period doubling",
+    "neimark-sacker": "Neimark–Sacker (torus)",
+    "fold": "fold",
+    "unconverged": "no orbit found",
+}
 
 
 def _shade_labels(ax: Any, smap: Any) -> None:
     seen = set()
     for lo, hi, lab in smap.intervals():
-        ax.axvspan(lo, hi, color=LABEL_COLORS.get(lab, "#eeeeee"), lw=0, label=None if lab in seen else lab)
+        name = LABEL_NAMES.get(lab, lab)
+        ax.axvspan(lo, hi, color=LABEL_COLORS.get(lab, "#eeeeee"), lw=0, label=None if lab in seen else name)
         seen.add(lab)
 
 
@@ -250,14 +299,15 @@ def plot_stability_map(smap: Any, sweep: Any | None = None, title: str = "") -> 
     _shade_labels(ax, smap)
     ax.plot(w[ok], smap.max_multiplier[ok], "k.-", ms=2.5, lw=0.8)
     ax.axhline(1.0, color="k", lw=0.6, ls="--")
-    ax.set_ylabel("max |Floquet multiplier|")
+    ax.set_ylabel(r"max $|\mu|$ (Floquet multiplier)")
     ax.set_ylim(0, max(1.5, float(np.max(smap.max_multiplier[ok], initial=1.0)) * 1.05))
-    ax.legend(fontsize=7, loc="upper left", ncols=3)
+    # below the panels: the shading runs under every curve, a legend inside would cover one
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncols=5, fontsize=8, frameon=False)
     ax = axs[1]
     _shade_labels(ax, smap)
     mu0 = smap.multipliers[:, 0]
     ax.plot(w[ok], np.degrees(np.abs(np.angle(mu0[ok]))), "k.", ms=2.5)
-    ax.set_ylabel("|arg| of critical multiplier [deg]")
+    ax.set_ylabel(r"$|\arg \mu|$ of the largest" + "\n" + "multiplier [deg]")
     ax.set_ylim(-5, 185)
     if has_ly:
         ax = axs[2]
@@ -266,9 +316,9 @@ def plot_stability_map(smap: Any, sweep: Any | None = None, title: str = "") -> 
         ly = np.asarray(sweep.lyapunov)[o]
         ax.plot(sw, ly, ".-", color="tab:purple", ms=2.5, lw=0.8)
         ax.axhline(0.0, color="k", lw=0.6)
-        ax.set_ylabel("largest Lyapunov exp. [1/(omega_n t)]")
-    axs[-1].set_xlabel("$\\omega = \\Omega/\\omega_n$")
-    fig.suptitle(title or f"period-1 orbit stability ({smap.model} model)")
+        ax.set_ylabel(LYAPUNOV)
+    axs[-1].set_xlabel(OMEGA)
+    fig.suptitle(title or f"Stability of the period-1 orbit, {smap.model} backlash")
     return fig
 
 
@@ -281,7 +331,8 @@ def plot_multipliers_complex(smap: Any, omegas: Sequence[float]) -> Figure:
     for w in omegas:
         i = int(np.argmin(np.abs(smap.omega - w)))
         mu = smap.multipliers[i]
-        ax.plot(mu.real, mu.imag, "o", ms=4, label=f"$\\omega$={smap.omega[i]:.2f} ({smap.labels[i]})")
+        lab = LABEL_NAMES.get(str(smap.labels[i]), smap.labels[i])
+        ax.plot(mu.real, mu.imag, "o", ms=4, label=f"$\\omega$ = {smap.omega[i]:.2f}: {lab}")
     ax.set_aspect("equal")
     ax.set_xlabel("Re $\\mu$")
     ax.set_ylabel("Im $\\mu$")

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from .common import new_figure
+from .common import B0, OMEGA, new_figure, plain_log_ticks
 
 BAND_COLORS = {
     "periodic": "#cfe8cf",
@@ -31,10 +31,12 @@ BAND_LABELS = {
 
 
 def draw_bands(ax: Any, bands: Any, horizontal: bool = True) -> None:
-    """Shade the regime bands (a :class:`gear_env.evaluation.RegimeBands`) across omega.
+    """Shade the regime bands (a :class:`gear_env.bands.RegimeBands`) across omega.
 
-    ``horizontal=True`` shades horizontal strips (omega on the y axis).
+    ``horizontal=True`` shades horizontal strips (omega on the y axis). ``bands=None`` draws nothing.
     """
+    if bands is None:
+        return
     seen = set()
     for kind, intervals in bands.bands.items():
         color = BAND_COLORS.get(kind, "#dddddd")
@@ -47,21 +49,23 @@ def draw_bands(ax: Any, bands: Any, horizontal: bool = True) -> None:
                 ax.axvspan(lo, hi, color=color, lw=0, label=label, zorder=0)
 
 
-class EnvRenderer:
+class EnvFrame:
     """Draws the env frame: omega history over the regime bands, the Poincare window, contact state.
 
+    It draws what it is given; :class:`gear_env.render.EnvRenderer` (what ``env.render()`` uses)
+    fetches the bands of the environment's configuration and hands them over.
+
     Args:
-        config: the env's :class:`GearSpeedConfig` (bands come from
-            :func:`gear_env.evaluation.regime_bands`, computed once and cached).
+        config: the env's settings (an object with ``omega_min``, ``omega_max``, ``max_steps``,
+            ``periods_per_step``, e.g. :class:`gear_env.env_config.GearSpeedConfig`).
+        bands: regime bands to shade (a :class:`gear_env.bands.RegimeBands`), or None for none.
         human: show the figure in a matplotlib window (pyplot) instead of off-screen.
     """
 
-    def __init__(self, config: Any, human: bool = False):
-        from ..evaluation import regime_bands
-
+    def __init__(self, config: Any, bands: Any = None, human: bool = False):
         self.config = config
         self.human = human
-        self.bands = regime_bands(config, points=30)
+        self.bands = bands
         if human:
             import matplotlib.pyplot as plt
 
@@ -86,25 +90,26 @@ class EnvRenderer:
             ax.plot(t[-1:], history[-1:, 0], "ko")
         ax.set_xlim(0, max(cfg.max_steps, 1))
         ax.set_ylim(cfg.omega_min, cfg.omega_max)
-        ax.set_ylabel("omega = Omega/omega_n")
-        ax.set_title("speed schedule over regime bands", fontsize=9)
-        ax.legend(loc="upper right", fontsize=6)
+        ax.set_ylabel(OMEGA)
+        ax.set_title("speed over the regime bands", fontsize=9)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(loc="upper right", fontsize=6)
         ax2 = fig.add_subplot(gs[1, 0], sharex=ax)
         if len(history):
             ax2.plot(t, history[:, 2], color="tab:red", lw=1, label="contact loss")
             ax2.plot(t, history[:, 1], color="tab:purple", lw=1, label="chaos c")
         ax2.set_ylim(-0.05, 1.05)
-        ax2.set_xlabel("env step")
+        ax2.set_xlabel(f"env step ({cfg.periods_per_step} mesh periods)")
         ax2.legend(loc="upper right", fontsize=6)
         ax3 = fig.add_subplot(gs[:, 1])
         if len(poincare):
             ax3.plot(poincare[:, 0], poincare[:, 1], ".", color="tab:blue", ms=4)
-        ax3.set_xlabel("Delta [b0]")
-        ax3.set_ylabel("dU/omega [b0]")
+        ax3.set_xlabel(f"$\\Delta$ [{B0}]")
+        ax3.set_ylabel(f"$dU/d\\tau$ [{B0}]  ($\\tau = \\Omega t$)")
         state = "teeth in contact"
         if len(history):
             state = f"contact loss {history[-1, 2]:.0%}, c = {history[-1, 1]:.2f}"
-        ax3.set_title(f"Poincare section\n{state}", fontsize=8)
+        ax3.set_title(f"Poincaré section ({len(poincare)} periods)\n{state}", fontsize=8)
         if self.human:
             fig.canvas.draw_idle()
             fig.canvas.flush_events()
@@ -128,9 +133,13 @@ class EnvRenderer:
 def plot_evaluation(report: Any, bands: Any):
     """omega(t) of the first episode of each policy over the regime bands; peak mesh force below.
 
+    The curves are the plant's omega, not the policies' commands: omega starts at the episode's
+    initial value and moves at most ``max_domega`` per step, so a schedule's curve lags its
+    command (a ramp may never meet its own start); the figure says so.
+
     Args:
-        report: :class:`gear_env.evaluation.EvaluationReport`.
-        bands: :class:`gear_env.evaluation.RegimeBands`.
+        report: :class:`gear_env.report.EvaluationReport`.
+        bands: :class:`gear_env.bands.RegimeBands`, or None for no shading.
 
     Returns:
         a matplotlib Figure (save it with :func:`gear_env.plots.save_figure`).
@@ -145,11 +154,29 @@ def plot_evaluation(report: Any, bands: Any):
         (line,) = ax.plot(t, e.omega, lw=1.6, label=f"{name} (return {e.ret:.1f})")
         ax2.plot(t, e.vibration, lw=1, color=line.get_color())
     ax.set_ylim(cfg.omega_min, cfg.omega_max)
-    ax.set_ylabel("omega = Omega/omega_n")
-    ax.set_title(f"speed schedules (episode seed {report.seed}) over regime bands ({bands.source})", fontsize=9)
-    ax.legend(fontsize=7, loc="upper right")
+    ax.set_ylabel(OMEGA)
+    readable = {"steady_reward_map": "steady runs at constant $\\omega$"}
+    fig.suptitle(f"$\\omega$ of each policy's first episode, seed {report.seed}", fontsize=10)
+    if bands is not None:
+        ax.set_title(f"bands: {readable.get(bands.source, bands.source)}", fontsize=8)
+    # policies and bands beside the axes (inside, they would cover the curves), the rate limit below
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    ax.text(
+        1.01,
+        0.0,
+        "The curves are the plant's $\\omega$, not the\n"
+        "command: it starts at the episode's initial\n"
+        f"$\\omega$ and changes by at most {cfg.max_domega:g} per step\n"
+        "(rate limit), so a schedule's curve lags\n"
+        "its command and may never meet its start.",
+        transform=ax.transAxes,
+        ha="left",
+        va="bottom",
+        fontsize=7,
+    )
     ax2.set_yscale("log")
-    ax2.set_ylabel("peak mesh force / F_s")
+    plain_log_ticks(ax2)
+    ax2.set_ylabel("peak mesh force\n/ static force $F_s$")
     ax2.set_xlabel(f"env step ({cfg.periods_per_step} mesh periods)")
     return fig
 
@@ -158,22 +185,32 @@ def plot_steady_reward(maps: dict[str, Any]):
     """Steady reward per step against constant omega, one curve per map, main penalties below.
 
     Args:
-        maps: label -> :class:`gear_env.evaluation.SteadyRewardMap`.
+        maps: label -> :class:`gear_env.steady_map.SteadyRewardMap`.
     """
-    fig = new_figure(9, 6)
+    from matplotlib.lines import Line2D
+
+    fig = new_figure(9, 6.4)
     ax, ax2 = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
     for label, m in maps.items():
-        (line,) = ax.plot(m.omegas, m.reward, "-o", ms=2.5, lw=1.4, label=f"{label} (best omega {m.best_omega:.2f})")
+        (line,) = ax.plot(
+            m.omegas, m.reward, "-o", ms=2.5, lw=1.4, label=f"{label} (best $\\omega$ = {m.best_omega:.2f})"
+        )
         c = line.get_color()
         ax2.plot(m.omegas, m.terms["chaos"], "-", color=c, lw=1.2)
         ax2.plot(m.omegas, m.terms["contact_loss"], "--", color=c, lw=1.0)
     ax.axhline(0, color="0.6", lw=0.6)
     ax.set_ylabel("steady reward per step")
-    ax.set_title("GearSpeed-v0: reward of holding omega constant (default weights)", fontsize=9)
-    ax.legend(fontsize=7)
-    ax2.set_ylabel("chaos c (solid), contact loss (dashed)", fontsize=8)
-    ax2.set_xlabel("omega = Omega/omega_n")
+    fig.suptitle("GearSpeed-v0: steady reward of holding $\\omega$ constant (default weights)", fontsize=10)
+    # below the panels: inside, the legend covered the dips of the curves
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=7, frameon=False)
+    styles = [
+        Line2D([], [], color="k", ls="-", lw=1.2, label="chaos indicator c"),
+        Line2D([], [], color="k", ls="--", lw=1.0, label="contact-loss fraction"),
+    ]
+    ax2.legend(handles=styles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    ax2.set_ylabel("fraction (0 to 1)", fontsize=8)
+    ax2.set_xlabel(OMEGA)
     return fig
 
 
-__all__ = ["EnvRenderer", "draw_bands", "plot_evaluation", "plot_steady_reward"]
+__all__ = ["EnvFrame", "draw_bands", "plot_evaluation", "plot_steady_reward"]

@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from .common import new_figure
+from .common import B0, LYAPUNOV, OMEGA, new_figure
 
 REGIME_COLORS = {"period-1": "tab:blue", "quasi-periodic": "tab:orange", "chaotic": "tab:red"}
 """Colours of the regimes; period-N (N > 1) are green."""
@@ -57,8 +57,9 @@ def plot_bifurcation(result: Any, name: str = "Delta", ax: Any = None, lyapunov:
     if late.size:  # points whose motion was still changing during the window (SweepResult.drift)
         ax.scatter(late, np.full(late.size, 0.015), transform=ax.get_xaxis_transform(), marker="^", s=16,
                    color="0.25", label="still drifting: longer transient", zorder=3)  # fmt: skip
-    unit = {"Delta": " [b0]", "delta": " [b0]", "U": " [b0]", "B_d": " [b0]", "psi": " [rad]", "force": " [k_m0 b0]"}
-    ax.set_ylabel(f"Poincare {name}{unit.get(name, '')}")
+    tex = {"Delta": "$\\Delta$", "delta": "$\\Delta$", "U": "$U$", "B_d": "$B_d$", "bd": "$B_d$", "psi": "$\\psi$"}
+    unit = {"psi": "rad", "force": "$k_{m0} b_0$"}
+    ax.set_ylabel(f"Poincaré samples of {tex.get(name, name)} [{unit.get(name, B0)}]")
     ax.set_title(f"Bifurcation diagram, {result.model} backlash, {result.direction} sweep")
     leg = ax.legend(loc="best", markerscale=8, fontsize=8)
     for handle, text in zip(leg.legend_handles, leg.get_texts()):  # the markerscale is for the dots
@@ -68,8 +69,8 @@ def plot_bifurcation(result: Any, name: str = "Delta", ax: Any = None, lyapunov:
     if show_lyap:
         ax2.plot(om, result.lyapunov, ".-", ms=2, lw=0.6, color="k")
         ax2.axhline(0.0, color="0.6", lw=0.6)
-        ax2.set_ylabel("largest Lyapunov\n[1/(omega_n t)]")
-        ax2.set_xlabel("omega = Omega/omega_n")
+        ax2.set_ylabel(LYAPUNOV, fontsize=8)
+        ax2.set_xlabel(OMEGA)
     else:
-        ax.set_xlabel("omega = Omega/omega_n")
+        ax.set_xlabel(OMEGA)
     return fig

@@ -1,0 +1,86 @@
+"""Roll out speed policies on ``GearSpeed-v0``: one episode (:func:`run_episode`) or several
+policies on the same episode seeds (:func:`evaluate_policies`, which returns a
+:class:`gear_env.report.EvaluationReport`). A policy is any object with SB3's
+``predict(obs, state, episode_start, deterministic)`` (SB3 models, :mod:`gear_env.schedules`).
+Also importable from :mod:`gear_env.evaluation`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from .env import GearSpeedEnv
+from .env_config import GearSpeedConfig
+from .report import EpisodeResult, EvaluationReport
+
+
+def run_episode(env: Any, policy: Any, seed: int | None) -> EpisodeResult:
+    """Roll out one episode of ``policy`` (``predict(obs, state, episode_start, deterministic)``)."""
+    obs, info = env.reset(seed=seed)
+    state = None
+    start = np.ones((1,), bool)
+    omegas: list[float] = []
+    vib: list[float] = []
+    ret = 0.0
+    done = False
+    while not done:
+        action, state = policy.predict(obs[None, :], state=state, episode_start=start, deterministic=True)
+        start = np.zeros((1,), bool)
+        obs, r, term, trunc, info = env.step(np.asarray(action, np.float32).reshape(1))
+        ret += r
+        omegas.append(info["omega"])
+        vib.append(info["force_peak"])
+        done = term or trunc
+    q = max(1, len(omegas) // 4)
+    return EpisodeResult(
+        ret=float(ret),
+        throughput=info["episode_throughput"],
+        chaotic_fraction=info["episode_steps_nonperiodic"] / max(info["episode_steps"], 1),
+        contact_loss=info["episode_contact_loss"],
+        impacts=int(info["episode_impacts"]),
+        settled_omega=float(np.mean(omegas[-q:])),
+        steps=int(info["episode_steps"]),
+        diverged=bool(info["diverged"]),
+        omega=omegas,
+        vibration=vib,
+    )
+
+
+def evaluate_policies(
+    policies: Mapping[str, Any],
+    config: GearSpeedConfig | Mapping[str, Any] | None = None,
+    episodes: int = 5,
+    seed: int = 0,
+) -> EvaluationReport:
+    """Evaluate policies on the same episode seeds.
+
+    Args:
+        policies: name -> object with SB3's ``predict(obs, state=None, episode_start=None,
+            deterministic=True) -> (actions, state)`` (SB3 models, :class:`SpeedSchedule`...).
+        config: environment settings.
+        episodes: episodes per policy (>= 1); episode k uses seed ``seed + k`` for every policy.
+        seed: base seed.
+
+    Returns:
+        :class:`EvaluationReport`.
+    """
+    if not policies:
+        raise ValueError("policies must name at least one policy")
+    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
+        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise ValueError(f"seed must be an integer, got {seed!r}")
+    cfg = GearSpeedConfig.from_kwargs(config)
+    env = GearSpeedEnv(cfg)
+    out: dict[str, list[EpisodeResult]] = {}
+    for name, pol in policies.items():
+        if not hasattr(pol, "predict"):
+            raise ValueError(f"policy {name!r} has no predict(obs, state, episode_start, deterministic) method")
+        out[name] = [run_episode(env, pol, int(seed) + k) for k in range(episodes)]
+    return EvaluationReport(out, cfg, int(seed))
+
+
+__all__ = ["evaluate_policies", "run_episode"]
