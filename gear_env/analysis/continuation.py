@@ -195,7 +195,7 @@ class _Point:
 
     @property
     def omega(self) -> float:
-        return float(self.z[10])
+        return float(self.z[-1])
 
     @property
     def amp_u(self) -> float:
@@ -204,9 +204,6 @@ class _Point:
     @property
     def amp_d(self) -> float:
         return 0.5 * float(self.info[TG.INFO_D_MAX] - self.info[TG.INFO_D_MIN])
-
-
-_NO_MU = np.zeros(10, dtype=complex)
 
 
 def _multipliers(jac: np.ndarray) -> np.ndarray:
@@ -279,21 +276,22 @@ class OrbitMap:
         """G(z) = P^N(x) - x and the point data (Jacobian; dP/domega by a forward difference of
         relative step ``d_omega``: it only enters the corrector matrix and the tangent, whose
         accuracy needs far less than the Jacobian's). Multipliers are filled in by the caller."""
-        x, w = z[:10], float(z[10])
+        x, w = z[:-1], float(z[-1])
         y, jac, info, pc = self.tangent(x, w, steps)
         dw = d_omega * (1.0 + w)
         pw = (self.value(x, w + dw, steps) - y) / dw
-        return y - x, _Point(z.copy(), _NO_MU, jac, pw, info, pc, steps)
+        return y - x, _Point(z.copy(), np.zeros(x.size, dtype=complex), jac, pw, info, pc, steps)
 
 
 def _tangent_vector(p: _Point, ref: np.ndarray) -> np.ndarray:
     """Unit null vector of [M - I, dP/domega], oriented along ``ref``."""
-    a = np.zeros((11, 11))
-    a[:10, :10] = p.jac - np.eye(10)
-    a[:10, 10] = p.pw
-    a[10] = ref
-    rhs = np.zeros(11)
-    rhs[10] = 1.0
+    n = p.z.size - 1
+    a = np.zeros((n + 1, n + 1))
+    a[:n, :n] = p.jac - np.eye(n)
+    a[:n, n] = p.pw
+    a[n] = ref
+    rhs = np.zeros(n + 1)
+    rhs[n] = 1.0
     try:
         t = np.linalg.solve(a, rhs)
     except np.linalg.LinAlgError:
@@ -313,24 +311,25 @@ def _correct(
     last_dz = math.inf
     res = math.inf
     for it in range(max_iter + 1):
-        if not (z[10] > 0.0):
-            return None, f"omega left the positive axis (omega={z[10]:.4g})"
+        if not (z[-1] > 0.0):
+            return None, f"omega left the positive axis (omega={z[-1]:.4g})"
         try:
             g, p = omap.evaluate(z, steps)
         except _MapFailed as exc:
             return None, f"the map failed ({exc})"
-        scale = 1.0 + float(np.max(np.abs(z[:10])))
+        scale = 1.0 + float(np.max(np.abs(z[:-1])))
         res = float(np.max(np.abs(g)))
         if res <= tol * scale and last_dz <= 1e3 * tol * scale:
             p.iterations = it
-            p.mu = _multipliers(omap.tangent(p.z[:10], p.omega, steps, corrected=True)[1])
+            p.mu = _multipliers(omap.tangent(p.z[:-1], p.omega, steps, corrected=True)[1])
             return p, ""
         if it == max_iter:
             break
-        a = np.zeros((11, 11))
-        a[:10, :10] = p.jac - np.eye(10)
-        a[:10, 10] = p.pw
-        a[10] = t
+        n = z.size - 1
+        a = np.zeros((n + 1, n + 1))
+        a[:n, :n] = p.jac - np.eye(n)
+        a[:n, n] = p.pw
+        a[n] = t
         rhs = np.concatenate([-g, [-float(t @ (z - z_pred))]])
         try:
             dz = np.linalg.solve(a, rhs)
@@ -381,7 +380,7 @@ REJOIN_GAP = 1e-2
 
 def _half_gap(p: _Point, period: int) -> float:
     """max|P^(N/2)(x) - x| / (1 + max|x|) of a period-N point (0 on a period-N/2 orbit)."""
-    x = p.z[:10]
+    x = p.z[:-1]
     return float(np.max(np.abs(p.pc[period // 2 - 1] - x))) / (1.0 + float(np.max(np.abs(x))))
 
 
@@ -404,7 +403,7 @@ def _check_int(value: Any, name: str, lo: int, hi: int) -> int:
 
 class _Continuer:
     def __init__(self, model, params, omega_min, omega_max, tol, ds, ds_min, ds_max, max_points, max_iter,
-                 locate_tol, max_period, max_switches, grazing, deadline, progress):  # fmt: skip
+                 locate_tol, max_period, max_switches, grazing, deadline, progress, map_factory=None):  # fmt: skip
         self.model = model
         self.params = params
         self.lo, self.hi = omega_min, omega_max
@@ -414,12 +413,13 @@ class _Continuer:
         self.deadline = deadline
         self.progress = progress
         self.result = ContinuationResult(model, (omega_min, omega_max))
-        self.maps: dict[int, OrbitMap] = {}
+        self.maps: dict[int, Any] = {}
+        self.map_factory = map_factory if map_factory is not None else (lambda n: OrbitMap(model, params, n))
         self.switch_queue: list[tuple[int, BifurcationPoint, _Point]] = []
 
     def omap(self, period: int) -> OrbitMap:
         if period not in self.maps:
-            self.maps[period] = OrbitMap(self.model, self.params, period)
+            self.maps[period] = self.map_factory(period)
         return self.maps[period]
 
     # -- bifurcation location along the secant A -> B
@@ -436,10 +436,10 @@ class _Continuer:
         while hi_t - lo_t > self.locate_tol:
             th = 0.5 * (lo_t + hi_t)
             zp = lo_p.z + (th - lo_t) * span * t_lo
-            p, _ = _correct(omap, zp, t_lo, omap.steps(float(zp[10])), self.tol, self.max_iter)
+            p, _ = _correct(omap, zp, t_lo, omap.steps(float(zp[-1])), self.tol, self.max_iter)
             if p is None:  # fall back on the secant
                 zp = a.z + th * d
-                p, _ = _correct(omap, zp, d / span, omap.steps(float(zp[10])), self.tol, self.max_iter)
+                p, _ = _correct(omap, zp, d / span, omap.steps(float(zp[-1])), self.tol, self.max_iter)
                 if p is None:
                     break
             if test(p) == ta:
@@ -470,7 +470,7 @@ class _Continuer:
             if kind == "fold" and child and _half_gap(p, period) < REJOIN_GAP:
                 return found, p.omega
             bp = BifurcationPoint(
-                omega=p.omega, type=kind, branch=bi, period=period, state=p.z[:10].copy(), amplitude_u=p.amp_u,
+                omega=p.omega, type=kind, branch=bi, period=period, state=p.z[:-1].copy(), amplitude_u=p.amp_u,
                 multipliers=_critical(p.mu, kind), bracket=(min(a.omega, b.omega), max(a.omega, b.omega)),
             )  # fmt: skip
             found.append(bp)
@@ -495,7 +495,7 @@ class _Continuer:
                 reason, complete = f"time limit reached at omega={p.omega:.6f}", False
                 break
             zp = p.z + ds * t
-            q, why = _correct(omap, zp, t, omap.steps(float(zp[10])), self.tol, self.max_iter)
+            q, why = _correct(omap, zp, t, omap.steps(float(zp[-1])), self.tol, self.max_iter)
             ok = q is not None
             if ok:
                 tq = _tangent_vector(q, t)
@@ -536,18 +536,20 @@ class _Continuer:
         if not complete:
             self.result.messages.append(f"branch {bi} (period {period}): {reason}")
 
-    def start_primary(self, omega0: float, direction: float, transient: int) -> list[_Point]:
+    def start_primary(self, omega0: float, direction: float, transient: int, x0: Any = None) -> list[_Point]:
         omap = self.omap(1)
-        sim = GearSimulator(self.params, self.model, None, omega0)
-        sim.advance(transient)
-        z = np.concatenate([sim.state, [omega0]])
-        t = np.zeros(11)
-        t[10] = 1.0  # natural-parameter corrector at omega0
+        if x0 is None:
+            sim = GearSimulator(self.params, self.model, None, omega0)
+            sim.advance(transient)
+            x0 = sim.state
+        z = np.concatenate([np.asarray(x0, float), [omega0]])
+        t = np.zeros(z.size)
+        t[-1] = 1.0  # natural-parameter corrector at omega0
         p, why = _correct(omap, z, t, omap.steps(omega0), self.tol, 40)
         if p is None:
             raise RuntimeError(f"no period-1 orbit found at omega={omega0:.6g}: {why}")
-        ref = np.zeros(11)
-        ref[10] = direction
+        ref = np.zeros(z.size)
+        ref[-1] = direction
         p.t = _tangent_vector(p, ref)
         return [p]
 
@@ -565,7 +567,7 @@ class _Continuer:
             q, _ = _correct(omap, zp, t, omap.steps(p.omega), self.tol, self.max_iter)
             if q is None:
                 return None
-            if float(np.max(np.abs(q.pc[bp.period - 1] - q.z[:10]))) < 1e-6:
+            if float(np.max(np.abs(q.pc[bp.period - 1] - q.z[:-1]))) < 1e-6:
                 return None  # the period-N orbit itself: no period-2N branch here
             pts.append(q)
         sec = pts[1].z - pts[0].z
@@ -578,8 +580,8 @@ def _make_branch(period: int, pts: list[_Point], parent: int | None, reason: str
     return Branch(
         period=period,
         omega=np.array([p.omega for p in pts]),
-        states=np.array([p.z[:10] for p in pts]).reshape(-1, 10),
-        multipliers=np.array([p.mu for p in pts]).reshape(-1, 10),
+        states=np.array([p.z[:-1] for p in pts]),
+        multipliers=np.array([p.mu for p in pts]),
         amplitude_u=np.array([p.amp_u for p in pts]),
         amplitude_delta=np.array([p.amp_d for p in pts]),
         switches=np.array([int(p.info[TG.INFO_SWITCHES]) for p in pts], dtype=int),
@@ -655,14 +657,25 @@ def continue_orbits(
     transient = _check_int(transient, "transient", 0, 10_000_000)
     if time_limit is not None:
         time_limit = _check_positive(time_limit, "time_limit")
+    return _run(
+        model, params if params is not None else GearParams(), lo, hi, None, None, 1.0, transient,
+        tol=tol, ds=ds, ds_min=ds_min, ds_max=ds_max, max_points=max_points, max_iter=max_iter,
+        locate_tol=locate_tol, max_period=max_period, max_switches=max_switches, grazing=grazing,
+        time_limit=time_limit, progress=progress,
+    )  # fmt: skip
+
+
+def _run(model, params, lo, hi, map_factory, x0, direction, transient, *, tol, ds, ds_min, ds_max, max_points,
+         max_iter, locate_tol, max_period, max_switches, grazing, time_limit, progress):  # fmt: skip
     t0 = time.perf_counter()
     deadline = None if time_limit is None else t0 + time_limit
     c = _Continuer(
-        model, params if params is not None else GearParams(), lo, hi, tol, ds, ds_min, ds_max, max_points,
-        max_iter, locate_tol, max_period, max_switches, bool(grazing), deadline, progress,
+        model, params, lo, hi, tol, ds, ds_min, ds_max, max_points, max_iter, locate_tol, max_period,
+        max_switches, bool(grazing), deadline, progress, map_factory,
     )  # fmt: skip
+    omega0 = lo if direction > 0 else hi
     try:
-        start = c.start_primary(lo, 1.0, transient)
+        start = c.start_primary(omega0, direction, transient, x0)
     except RuntimeError as exc:
         c.result.messages.append(str(exc))
         c.result.elapsed = time.perf_counter() - t0
@@ -688,6 +701,109 @@ def continue_orbits(
         c.run_branch(2 * bp.period, start, bi)
     c.result.elapsed = time.perf_counter() - t0
     return c.result
+
+
+def continue_map(
+    map_factory: Callable[[int], Any],
+    x0: Any,
+    omega_min: float,
+    omega_max: float,
+    *,
+    direction: int = 1,
+    tol: float = 1e-9,
+    ds: float = 0.01,
+    ds_min: float = 1e-5,
+    ds_max: float = 0.04,
+    max_points: int = 2000,
+    max_iter: int = 12,
+    locate_tol: float = 1e-3,
+    max_period: int = 16,
+    max_switches: int = 8,
+    time_limit: float | None = None,
+) -> ContinuationResult:
+    """The continuation of :func:`continue_orbits` for any periodically forced system.
+
+    ``map_factory(N)`` returns an object with the interface of :class:`OrbitMap` (a
+    :class:`FiniteDifferenceMap` for a smooth system); the branch starts from the fixed point near
+    ``x0`` at omega_min (``direction`` = 1) or omega_max (-1). Options as :func:`continue_orbits`.
+    """
+    lo, hi = float(omega_min), float(omega_max)
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+        raise ValueError(
+            f"omega_min, omega_max must satisfy 0 < omega_min < omega_max, got {omega_min!r}, {omega_max!r}"
+        )
+    if direction not in (1, -1):
+        raise ValueError(f"direction must be 1 or -1, got {direction!r}")
+    return _run(
+        "custom", None, lo, hi, map_factory, np.asarray(x0, float), float(direction), 0,
+        tol=tol, ds=ds, ds_min=ds_min, ds_max=ds_max, max_points=max_points, max_iter=max_iter,
+        locate_tol=locate_tol, max_period=max_period, max_switches=max_switches, grazing=False,
+        time_limit=time_limit, progress=None,
+    )  # fmt: skip
+
+
+class FiniteDifferenceMap:
+    """Period-N map of a smooth forced system from a one-period function, for :func:`continue_map`.
+
+    Args:
+        advance: ``advance(x, omega) -> x`` after one forcing period (x: (n,) array, not modified).
+        period: N.
+        amplitude: ``amplitude(points (N, n)) -> float`` reported as ``amplitude_u`` (default:
+            half peak-to-peak of the first coordinate over the N section points).
+        fd_step: relative central-difference step of the Jacobian.
+    """
+
+    def __init__(self, advance: Callable[[np.ndarray, float], np.ndarray], period: int = 1,
+                 amplitude: Callable[[np.ndarray], float] | None = None, fd_step: float = 1e-6):  # fmt: skip
+        self.advance = advance
+        self.period = int(period)
+        self.amplitude = amplitude
+        self.fd_step = fd_step
+        self.evaluations = 0
+
+    def steps(self, omega: float) -> int:
+        """Unused discretisation count (kept for the :class:`OrbitMap` interface)."""
+        return 0
+
+    def value(self, x: np.ndarray, omega: float, steps: int = 0) -> np.ndarray:
+        """P^N(x)."""
+        y = np.array(x, float)
+        for _ in range(self.period):
+            y = np.asarray(self.advance(y, omega), float)
+        self.evaluations += 1
+        return y
+
+    def _orbit(self, x: np.ndarray, omega: float) -> np.ndarray:
+        pts = []
+        y = np.array(x, float)
+        for _ in range(self.period):
+            y = np.asarray(self.advance(y, omega), float)
+            pts.append(y)
+        return np.array(pts)
+
+    def tangent(self, x: np.ndarray, omega: float, steps: int = 0, corrected: bool = False):
+        """(P^N(x), central-difference Jacobian, info, section points (N, n))."""
+        pc = self._orbit(x, omega)
+        n = x.size
+        jac = np.empty((n, n))
+        for j in range(n):
+            h = self.fd_step * (1.0 + abs(x[j]))
+            e = np.zeros(n)
+            e[j] = h
+            jac[:, j] = (self.value(x + e, omega) - self.value(x - e, omega)) / (2 * h)
+        info = np.zeros(TG.N_INFO)
+        amp = self.amplitude(pc) if self.amplitude is not None else 0.5 * float(np.ptp(pc[:, 0]))
+        info[TG.INFO_U_MAX] = amp
+        info[TG.INFO_U_MIN] = -amp
+        return pc[-1].copy(), jac, info, pc
+
+    def evaluate(self, z: np.ndarray, steps: int = 0, d_omega: float = 1e-7):
+        """As :meth:`OrbitMap.evaluate`."""
+        x, w = z[:-1], float(z[-1])
+        y, jac, info, pc = self.tangent(x, w)
+        dw = d_omega * (1.0 + w)
+        pw = (self.value(x, w + dw) - self.value(x, w - dw)) / (2 * dw)
+        return y - x, _Point(z.copy(), np.zeros(x.size, dtype=complex), jac, pw, info, pc, 0)
 
 
 def orbit_at(
@@ -724,6 +840,8 @@ def orbit_at(
 
 __all__ = [
     "BIFURCATION_TYPES",
+    "FiniteDifferenceMap",
+    "continue_map",
     "BifurcationPoint",
     "Branch",
     "ContinuationResult",
