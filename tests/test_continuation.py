@@ -186,7 +186,7 @@ def test_duffing_fold_pair_matches_harmonic_balance():
     assert len(cross) == 3
     assert [bool(unstable[i]) for i in cross] == [False, True, False]
     assert np.all(br.multipliers[unstable & mid, 0].real > 1)
-    assert amp[cross[0]] < amp[cross[1]] < amp[cross[2]]
+    assert amp[cross[0]] > amp[cross[1]] > amp[cross[2]]  # upper branch first, then saddle, lower
 
 
 def test_logistic_map_period_doubling_cascade_by_branch_switching():
