@@ -123,7 +123,7 @@ class Branch:
 @dataclass
 class BifurcationPoint:
     """A located bifurcation: ``omega``, ``type`` (one of ``BIFURCATION_TYPES``), the index of its
-    ``branch``, the branch ``period``, the ``state`` and ``amplitude_u`` there, the critical
+    ``branch``, the branch ``period``, the ``state``, ``amplitude_u`` and ``amplitude_delta`` there, the critical
     ``multipliers`` (one real or a complex pair) and the omega bracket ``(lo, hi)`` it was located in.
     """
 
@@ -135,6 +135,7 @@ class BifurcationPoint:
     amplitude_u: float
     multipliers: np.ndarray
     bracket: tuple[float, float]
+    amplitude_delta: float = 0.0
 
     def to_json_dict(self) -> dict[str, Any]:
         """``{"omega", "type", "branch", ...}`` for the JSON output."""
@@ -144,6 +145,7 @@ class BifurcationPoint:
             "branch": int(self.branch),
             "period": int(self.period),
             "amplitude_u": float(self.amplitude_u),
+            "amplitude_delta": float(self.amplitude_delta),
             "multipliers_re": [float(m.real) for m in self.multipliers],
             "multipliers_im": [float(m.imag) for m in self.multipliers],
             "bracket": [float(self.bracket[0]), float(self.bracket[1])],
@@ -378,6 +380,11 @@ REJOIN_GAP = 1e-2
 1 + max|x|) is the branch meeting its period-N parent: the branch ends there."""
 
 
+def _half_vec(p: _Point, period: int) -> np.ndarray:
+    """P^(N/2)(x) - x of a period-N point."""
+    return p.pc[period // 2 - 1] - p.z[:-1]
+
+
 def _half_gap(p: _Point, period: int) -> float:
     """max|P^(N/2)(x) - x| / (1 + max|x|) of a period-N point (0 on a period-N/2 orbit)."""
     x = p.z[:-1]
@@ -472,6 +479,7 @@ class _Continuer:
             bp = BifurcationPoint(
                 omega=p.omega, type=kind, branch=bi, period=period, state=p.z[:-1].copy(), amplitude_u=p.amp_u,
                 multipliers=_critical(p.mu, kind), bracket=(min(a.omega, b.omega), max(a.omega, b.omega)),
+                amplitude_delta=p.amp_d,
             )  # fmt: skip
             found.append(bp)
             if kind == "period-doubling" and 2 * period <= self.max_period:
@@ -512,6 +520,7 @@ class _Continuer:
                     break
                 continue
             q.t = tq
+            p_prev = p
             child = parent is not None and period > 1
             found, rejoin = self._detect(bi, period, omap, p, q, child)
             self.result.bifurcations.extend(found)
@@ -529,9 +538,15 @@ class _Continuer:
             if not (self.lo <= q.omega <= self.hi):
                 reason = f"left the omega range at omega={q.omega:.6f}"
                 break
-            if child and len(pts) > 3 and _half_gap(q, period) < 0.1 * REJOIN_GAP:
-                reason = f"rejoined the period-{period // 2} branch at omega={q.omega:.6f}"
-                break
+            if child:
+                # P^(N/2)(x) - x changes sign where the branch passes through its parent's orbit
+                # (the other half of the bubble is the same orbit shifted by N/2 periods)
+                ga, gb = _half_vec(p_prev, period), _half_vec(q, period)
+                if float(ga @ gb) < 0.0:
+                    na, nb = float(np.linalg.norm(ga)), float(np.linalg.norm(gb))
+                    w = p_prev.omega + (q.omega - p_prev.omega) * na / (na + nb)
+                    reason = f"rejoined the period-{period // 2} branch at omega={w:.6f}"
+                    break
         self.result.branches.append(_make_branch(period, pts, parent, reason, complete))
         if not complete:
             self.result.messages.append(f"branch {bi} (period {period}): {reason}")
@@ -561,15 +576,18 @@ class _Continuer:
         v = np.real(vec[:, k])
         v = v / np.linalg.norm(v)
         t = np.concatenate([v, [0.0]])
-        pts = []
-        for e in (eps, 2 * eps):
-            zp = p.z + e * t
-            q, _ = _correct(omap, zp, t, omap.steps(p.omega), self.tol, self.max_iter)
-            if q is None:
-                return None
-            if float(np.max(np.abs(q.pc[bp.period - 1] - q.z[:-1]))) < 1e-6:
-                return None  # the period-N orbit itself: no period-2N branch here
-            pts.append(q)
+        for e0 in (eps, 0.25 * eps, -eps):  # a smaller offset, then the other side, if needed
+            pts = []
+            for e in (e0, 2 * e0):
+                zp = p.z + e * t
+                q, _ = _correct(omap, zp, t, omap.steps(p.omega), self.tol, self.max_iter)
+                if q is None or float(np.max(np.abs(q.pc[bp.period - 1] - q.z[:-1]))) < 1e-6:
+                    break  # no convergence, or the period-N orbit itself
+                pts.append(q)
+            if len(pts) == 2:
+                break
+        if len(pts) < 2:
+            return None
         sec = pts[1].z - pts[0].z
         pts[0].t = sec / np.linalg.norm(sec)
         pts[1].t = _tangent_vector(pts[1], pts[0].t)

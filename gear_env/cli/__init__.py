@@ -9,6 +9,7 @@ import sys
 
 # sub-command modules, in the order shown by --help
 COMMANDS = ("demo", "simulate", "sweep", "stability", "figures", "evaluate", "train", "compile")
+COMMANDS += ("continuation",)
 
 
 def build_parser() -> argparse.ArgumentParser:
