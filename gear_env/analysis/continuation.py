@@ -49,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from .. import kernels as K
+from ..errors import SimulationDivergedError
 from ..params import GearParams, model_code
 from ..simulator import NEWTON_MAX_ITER, NEWTON_TOL, GearSimulator, check_omega, default_steps_per_period
 from . import tangent as TG
@@ -555,7 +556,10 @@ class _Continuer:
         omap = self.omap(1)
         if x0 is None:
             sim = GearSimulator(self.params, self.model, None, omega0)
-            sim.advance(transient)
+            try:
+                sim.advance(transient)
+            except SimulationDivergedError as exc:
+                raise RuntimeError(f"the start simulation at omega={omega0:.6g} failed: {exc}") from None
             x0 = sim.state
         z = np.concatenate([np.asarray(x0, float), [omega0]])
         t = np.zeros(z.size)
