@@ -496,6 +496,7 @@ class _Continuer:
         p = pts[-1]
         t = p.t
         ds = self.ds0
+        gap_max = 0.0
         while True:
             if len(pts) >= self.max_points:
                 reason, complete = f"stopped after max_points={self.max_points} points", False
@@ -523,7 +524,10 @@ class _Continuer:
             q.t = tq
             p_prev = p
             child = parent is not None and period > 1
-            found, rejoin = self._detect(bi, period, omap, p, q, child)
+            if child and len(pts) < 4:  # the switching point's own +1 multiplier is not a fold
+                found, rejoin = [], None
+            else:
+                found, rejoin = self._detect(bi, period, omap, p, q, child)
             self.result.bifurcations.extend(found)
             pts.append(q)
             if rejoin is not None:
@@ -543,8 +547,12 @@ class _Continuer:
                 # P^(N/2)(x) - x changes sign where the branch passes through its parent's orbit
                 # (the other half of the bubble is the same orbit shifted by N/2 periods)
                 ga, gb = _half_vec(p_prev, period), _half_vec(q, period)
-                if float(ga @ gb) < 0.0:
-                    na, nb = float(np.linalg.norm(ga)), float(np.linalg.norm(gb))
+                na, nb = float(np.linalg.norm(ga)), float(np.linalg.norm(gb))
+                gap_max = max(gap_max, na, nb)
+                if _half_gap(q, period) < 1e-4:  # on the parent orbit itself
+                    reason = f"rejoined the period-{period // 2} branch at omega={q.omega:.6f}"
+                    break
+                if float(ga @ gb) < 0.0 and min(na, nb) < 0.25 * gap_max:  # through zero, not a turn
                     w = p_prev.omega + (q.omega - p_prev.omega) * na / (na + nb)
                     reason = f"rejoined the period-{period // 2} branch at omega={w:.6f}"
                     break
