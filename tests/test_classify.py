@@ -53,8 +53,31 @@ def test_recurrence_clusters_and_same_orbit():
 
 
 def test_lyapunov_tolerance_shrinks_with_time():
-    assert lyapunov_tolerance(100.0) == pytest.approx(0.03)
-    assert lyapunov_tolerance(1e6) == pytest.approx(1e-3)
+    assert lyapunov_tolerance(100.0) == pytest.approx(0.02)  # 2/T
+    assert lyapunov_tolerance(1e6) == pytest.approx(5e-4)  # the floor
+
+
+def test_resolved_positive_exponent_is_chaos_even_when_points_recur():
+    """Rule 0: the exponent decides before the recurrence test when it is above the zero band."""
+    orbit = np.tile(np.array([[0.0, 1.0], [1.0, 0.0], [0.5, 0.5]]), (20, 1))
+    assert classify_motion(orbit).label == "period-3"
+    assert classify_motion(orbit, lyapunov=-0.01).label == "period-3"
+    assert classify_motion(orbit, lyapunov=4e-4).label == "period-3"  # within the band: periodic
+    c = classify_motion(orbit, lyapunov=2e-3)
+    assert c.label == "chaotic" and c.period == 0 and c.best_period == 3
+    assert classify_motion(orbit, lyapunov=2e-3, lyap_tol=5e-3).label == "period-3"
+
+
+def test_dynamic_0p45_is_chaotic():
+    """Dynamic model, omega = 0.45: its Poincare points recur after 32 periods within 1e-3, but
+    the exponent (+0.001 per unit time, +0.013 per mesh period) is resolved: chaotic. The
+    neighbours 0.44 (period-8) and 0.455 (period-16, negative exponent) stay periodic."""
+    from gear_env.analysis import sweep
+
+    r = sweep([0.44, 0.445, 0.45, 0.455], model="dynamic", progress=False)
+    assert r.regime[2] == "chaotic" and r.lyapunov[2] > 5e-4
+    assert r.regime[0] == "period-8" and r.regime[3] == "period-16"
+    assert r.lyapunov[0] < 0 and r.lyapunov[3] < 0
 
 
 @pytest.mark.parametrize(

@@ -8,7 +8,18 @@ import importlib
 import sys
 
 # sub-command modules, in the order shown by --help
-COMMANDS = ("demo", "simulate", "sweep", "stability", "figures", "evaluate", "train", "report", "compile")
+COMMANDS = (
+    "demo",
+    "simulate",
+    "sweep",
+    "stability",
+    "continuation",
+    "figures",
+    "evaluate",
+    "train",
+    "report",
+    "compile",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

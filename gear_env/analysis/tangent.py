@@ -1,0 +1,338 @@
+"""The N-period Poincare map of the gear model together with its exact Jacobian (tangent map).
+
+The map is the one every other result uses: the simulator's Newmark-beta step with its Newton
+solve (``kernels.newmark_try_t``, the same physics, the same starting guesses, the same step
+splitting as ``kernels.integrate_stats``), so ``P`` here equals ``floquet.PeriodMap`` bit for bit.
+Alongside every step the variational equations of the *discrete* step are propagated:
+
+* A converged implicit step satisfies ``a1 = A(q1, v1, phi1)`` with ``q1 = q~ + beta h^2 a1`` and
+  ``v1 = v~ + gamma h a1`` (predictors ``q~ = q0 + h v0 + (1/2 - beta) h^2 a0``,
+  ``v~ = v0 + (1 - gamma) h a0``). Differentiating gives the tangent of the step,
+
+      (I - beta h^2 J_q - gamma h J_v) da1 = J_q dq~ + J_v dv~,
+
+  with ``J = dA/d(q, v)`` at the end of the step: the Newton matrix of the step solved once
+  more for 10 right-hand sides (a dense 5x5 elimination; it is the same matrix the kernel's
+  Sherman-Morrison solve inverts, plus the small terms of the force direction's dependence on psi).
+* ``J`` is that of the contact region the kernel's Newton iteration converged to (``region``), so
+  at a contact change inside a step the derivative is one-sided: the one of the branch the
+  discrete map actually took. (The backlash force is continuous, so both one-sided derivatives
+  describe the same continuous map; they differ only on the kink itself.)
+* The start acceleration is ``A(x)`` (``kernels.start_step``), so ``da0 = J(x0) dx0``.
+
+The derivative of the acceleration :func:`accel_jacobian` is written here (the kernels compute
+the force, not its full derivative); tests/test_continuation.py checks it against finite
+differences of ``kernels.accel``. Neglected: the second derivative of psi times the relative
+displacement perpendicular to the line of action (exactly zero on every motion of the model,
+MODEL.md sec. 6).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import kernels as K
+
+# entries of the ``info`` vector written by :func:`tangent_map`
+INFO_U_MAX = 0
+INFO_U_MIN = 1
+INFO_D_MAX = 2
+INFO_D_MIN = 3
+INFO_BD_MAX = 4
+INFO_BD_MIN = 5
+INFO_SWITCHES = 6  # contact-region changes over the interval (step ends, start region included)
+INFO_SEP = 7  # fraction of steps ending with the teeth apart
+INFO_SPLITS = 8  # steps that needed sub-steps
+INFO_BACK = 9  # fraction of steps ending in back-side contact
+N_INFO = 10
+
+
+@K.kernel_inline
+def accel_jacobian(s, ce, se, omega, kk, k, dynamic, region, J):
+    """Derivative of the accelerations ``A(q, v)`` (``kernels.accel``) with respect to (q, v).
+
+    ``s`` is a state tuple (q (5), v (5), ...), ``(ce, se, kk)`` the excitation, ``k`` the
+    :func:`kernels.step_consts` tuple and ``region`` the contact region whose branch of the
+    backlash function is differentiated (+1 drive, 0 apart, -1 back). Writes ``J`` (5, 10):
+    columns 0-4 d/dq, 5-9 d/dv (natural time, dimensionless). Returns the mesh force Fhat.
+    """
+    delta, ddelta, bd, f, reg0, sp, cp, db0, db1, dp0, dp1 = K.mesh_t(s, ce, se, omega, k, dynamic)
+    r = float(region)
+    ar = abs(r)
+    if region == reg0:
+        fr_ = f
+    else:  # the force of the requested branch (continuous across the kink)
+        fr_ = delta - r * bd if region != 0 else 0.0
+    F = k[8] * ddelta + kk * fr_
+    fr = K.friction_t(ce, se, k)
+    dx = s[0] - s[2]
+    dy = s[1] - s[3]
+    dvx = s[5] - s[7]
+    dvy = s[6] - s[8]
+    P = dx * cp + dy * sp
+    Q = -dx * sp + dy * cp
+    A = dvx * cp + dvy * sp
+    psid = dp0 * dvx + dp1 * dvy
+    pq = (dp0, dp1, -dp0, -dp1, 0.0)
+    g = (sp, -cp, -sp, cp, 1.0)
+    dPq = (cp, sp, -cp, -sp, 0.0)
+    dbq = (db0, db1, -db0, -db1, 0.0)
+    wv = (k[0] * (sp - fr * cp), -k[0] * (cp + fr * sp), -k[1] * (sp - fr * cp), k[1] * (cp + fr * sp), 1.0)
+    dw = (k[0] * (cp + fr * sp), k[0] * (sp - fr * cp), -k[1] * (cp + fr * sp), -k[1] * (sp - fr * cp), 0.0)
+    dk = (k[4], k[4], k[5], k[5], 0.0)
+    dc = (k[2], k[2], k[3], k[3], 0.0)
+    for i in range(5):
+        for j in range(10):
+            J[i, j] = 0.0
+    for j in range(5):
+        ddel_q = g[j] + P * pq[j]  # dDelta/dq = dDelta'/dv
+        dddel_q = (A + psid * Q) * pq[j] + psid * dPq[j]
+        df_q = ar * ddel_q - r * dbq[j]
+        dF_q = k[8] * dddel_q + kk * df_q
+        dF_v = k[8] * ddel_q
+        for i in range(5):
+            J[i, j] = -wv[i] * dF_q - F * dw[i] * pq[j]
+            J[i, 5 + j] = -wv[i] * dF_v
+        J[j, j] -= dk[j]
+        J[j, 5 + j] -= dc[j]
+    return F
+
+
+@K.kernel_inline
+def _step_tangent(T, J, s1, ce, se, kk, omega, hc, k, dynamic, region, Mn, R, old_region, theta, J2):
+    """Tangent of one converged Newmark step (module docstring): T (15, 10) rows (q, v, a) of the
+    start state's derivatives in, of the end state's out. J (5, 10), Mn (5, 5), R (5, 10), J2
+    (5, 10) work. With ``theta`` in [0, 1] (crossing-corrected mode) the step crossed from
+    ``old_region`` into ``region`` after the fraction theta of its length: the end-of-step
+    Jacobian is replaced by (2 theta - 1) J_old + 2 (1 - theta) J_new so that the trapezoidal
+    weights of the two regions are theta and 1 - theta, and the acceleration rows are reset to
+    J_new (q, v) afterwards. ``theta`` < 0: the exact tangent of the discrete step."""
+    h, bh2, gh, hh, h1 = hc[0], hc[1], hc[2], hc[3], hc[4]
+    accel_jacobian(s1, ce, se, omega, kk, k, dynamic, region, J)
+    if theta >= 0.0:
+        for i in range(5):
+            for j in range(10):
+                J2[i, j] = J[i, j]
+        accel_jacobian(s1, ce, se, omega, kk, k, dynamic, old_region, J)
+        for i in range(5):
+            for j in range(10):
+                J[i, j] = (2.0 * theta - 1.0) * J[i, j] + 2.0 * (1.0 - theta) * J2[i, j]
+    ncol = T.shape[1]
+    for c_ in range(ncol):
+        for i in range(5):
+            T[i, c_] = T[i, c_] + h * T[5 + i, c_] + hh * T[10 + i, c_]  # dq~
+            T[5 + i, c_] = T[5 + i, c_] + h1 * T[10 + i, c_]  # dv~
+    for i in range(5):
+        for c_ in range(ncol):
+            acc = 0.0
+            for j in range(5):
+                acc += J[i, j] * T[j, c_] + J[i, 5 + j] * T[5 + j, c_]
+            R[i, c_] = acc
+        for j in range(5):
+            Mn[i, j] = -bh2 * J[i, j] - gh * J[i, 5 + j]
+        Mn[i, i] += 1.0
+    # Gaussian elimination with partial pivoting, 5 x 5, ncol right-hand sides
+    for p in range(5):
+        piv = p
+        for i in range(p + 1, 5):
+            if abs(Mn[i, p]) > abs(Mn[piv, p]):
+                piv = i
+        if piv != p:
+            for j in range(5):
+                tmp = Mn[p, j]
+                Mn[p, j] = Mn[piv, j]
+                Mn[piv, j] = tmp
+            for c_ in range(ncol):
+                tmp = R[p, c_]
+                R[p, c_] = R[piv, c_]
+                R[piv, c_] = tmp
+        inv = 1.0 / Mn[p, p]
+        for i in range(p + 1, 5):
+            fac = Mn[i, p] * inv
+            if fac != 0.0:
+                for j in range(p, 5):
+                    Mn[i, j] -= fac * Mn[p, j]
+                for c_ in range(ncol):
+                    R[i, c_] -= fac * R[p, c_]
+    for p in range(4, -1, -1):
+        inv = 1.0 / Mn[p, p]
+        for c_ in range(ncol):
+            acc = R[p, c_]
+            for j in range(p + 1, 5):
+                acc -= Mn[p, j] * R[j, c_]
+            R[p, c_] = acc * inv
+    for c_ in range(ncol):
+        for i in range(5):
+            T[10 + i, c_] = R[i, c_]
+            T[i, c_] += bh2 * R[i, c_]
+            T[5 + i, c_] += gh * R[i, c_]
+    if theta >= 0.0:
+        for i in range(5):
+            for c_ in range(ncol):
+                acc = 0.0
+                for j in range(5):
+                    acc += J2[i, j] * T[j, c_] + J2[i, 5 + j] * T[5 + j, c_]
+                T[10 + i, c_] = acc
+
+
+@K.kernel
+def tangent_map(x, omega, n_periods, n_steps, c, dynamic, max_iter, tol, jac, pc, info, corrected):
+    """Advance ``x`` (10, in place) by ``n_periods`` mesh periods at constant ``omega`` from mesh
+    phase 0 and compute the Jacobian of that map.
+
+    The trajectory is the one of ``kernels.integrate_stats`` (same steps, guesses and splitting).
+    Writes ``jac`` (10, 10) = dP^N/dx, ``pc`` (n_periods, 10) the state at the end of every mesh
+    period and ``info`` (N_INFO, see ``INFO_*``). Returns the kernel status (``kernels.OK``,
+    ``DIVERGED`` or ``NEWTON_FAILED``).
+
+    ``corrected`` = 0: ``jac`` is the exact Jacobian of the discrete map (one-sided at contact
+    changes). ``corrected`` = 1: in a step whose end lies in another contact region than its start,
+    the crossing is located by linear interpolation of the gap function (Delta - B_d or
+    Delta + B_d) and the step's tangent weights the two regions' Jacobians by the time spent in
+    each (:func:`_step_tangent`): the monodromy of the ODE to O(h^2) rather than O(h) per contact
+    change (the discrete map's own Jacobian jumps each time a contact change moves from one step
+    to the next, a sawtooth of ~0.04 in |mu| at 192 steps per period).
+    """
+    k = K.step_consts(c)
+    tab = K._excitation_table(0.0, n_steps, c)
+    work = np.zeros(K.WORK_SIZE)
+    a = np.zeros(K.NDOF)
+    K.start_step(x, a, 0.0, omega, c, dynamic, work)
+    s = K.load_t(x, a)
+    mesh0 = K.mesh_t(s, tab[0, 0], tab[0, 1], omega, k, dynamic)
+    reg_prev = mesh0[4]
+    T = np.zeros((15, 10))
+    Ts = np.zeros((15, 10))
+    J = np.zeros((5, 10))
+    J2 = np.zeros((5, 10))
+    Mn = np.zeros((5, 5))
+    R = np.zeros((5, 10))
+    accel_jacobian(s, tab[0, 0], tab[0, 1], omega, tab[0, 2], k, dynamic, reg_prev, J)
+    for i in range(10):
+        T[i, i] = 1.0
+    for i in range(5):
+        for j in range(10):
+            T[10 + i, j] = J[i, j]
+    u_max = s[4]
+    u_min = s[4]
+    d_max = mesh0[0]
+    d_min = mesh0[0]
+    bd_max = mesh0[2]
+    bd_min = mesh0[2]
+    switches = 0.0
+    sep = 0.0
+    back = 0.0
+    splits = 0.0
+    total = n_periods * n_steps
+    dphi = K.TWO_PI / n_steps
+    hc = K.step_coeffs(dphi / omega, k)
+    g = (a[0], a[1], a[2], a[3], a[4])
+    status = K.OK
+    d_prev = mesh0[0]
+    bd_prev = mesh0[2]
+    for j in range(total):
+        m = (j + 1) % n_steps
+        ok, s1, F, region, delta, bd, sp, cp = K.newmark_try_t(
+            s, g, tab[m, 0], tab[m, 1], tab[m, 2], omega, hc, k, dynamic, max_iter, tol
+        )
+        if ok:
+            theta = -1.0
+            if corrected != 0 and region != reg_prev and region * reg_prev == 0:
+                sg = float(region + reg_prev)  # the boundary crossed: +1 drive, -1 back side
+                g0 = d_prev - sg * bd_prev
+                g1 = delta - sg * bd
+                if g0 != g1:
+                    theta = min(1.0, max(0.0, g0 / (g0 - g1)))
+            _step_tangent(
+                T, J, s1, tab[m, 0], tab[m, 1], tab[m, 2], omega, hc, k, dynamic, region, Mn, R, reg_prev, theta, J2
+            )
+            g = K.guess_t(s, s1, dynamic == 0)
+        else:
+            # the step again in 2, 4, ... sub-steps, as kernels.split_step_t does, with tangents
+            phi_a = dphi * j
+            good = False
+            for level in range(1, K.MAX_SPLIT_LEVEL + 1):
+                nsub = 1 << level
+                ss = s
+                sub = dphi / nsub
+                for r_ in range(15):
+                    for c_ in range(10):
+                        Ts[r_, c_] = T[r_, c_]
+                good = True
+                for js in range(nsub):
+                    frac = (js + 1.0) / nsub
+                    wk = math.sqrt(omega * omega + (omega * omega - omega * omega) * frac)
+                    hcs = K.step_coeffs(2.0 * sub / (omega + wk), k)
+                    cek, sek, kkk = K.excitation(phi_a + sub * (js + 1.0), c)
+                    ga = (ss[10], ss[11], ss[12], ss[13], ss[14])
+                    oks, ss, F, region, delta, bd, sp, cp = K.newmark_try_t(
+                        ss, ga, cek, sek, kkk, wk, hcs, k, dynamic, max_iter, tol
+                    )
+                    if not oks:
+                        good = False
+                        break
+                    _step_tangent(Ts, J, ss, cek, sek, kkk, wk, hcs, k, dynamic, region, Mn, R, region, -1.0, J2)
+                if good:
+                    break
+            if not good:
+                status = K.NEWTON_FAILED
+                break
+            for r_ in range(15):
+                for c_ in range(10):
+                    T[r_, c_] = Ts[r_, c_]
+            s1 = ss
+            splits += 1.0
+            g = K.guess_t(s, s1, True)
+        s = s1
+        if K._diverged_t(s):
+            status = K.DIVERGED
+            break
+        if region != reg_prev:
+            switches += 1.0
+        reg_prev = region
+        d_prev = delta
+        bd_prev = bd
+        if region == 0:
+            sep += 1.0
+        elif region < 0:
+            back += 1.0
+        u_max = max(u_max, s[4])
+        u_min = min(u_min, s[4])
+        d_max = max(d_max, delta)
+        d_min = min(d_min, delta)
+        bd_max = max(bd_max, bd)
+        bd_min = min(bd_min, bd)
+        if m == 0:
+            p = (j + 1) // n_steps - 1
+            for i in range(10):
+                pc[p, i] = s[i]
+    for i in range(10):
+        x[i] = s[i]
+        for j in range(10):
+            jac[i, j] = T[i, j]
+    info[INFO_U_MAX] = u_max
+    info[INFO_U_MIN] = u_min
+    info[INFO_D_MAX] = d_max
+    info[INFO_D_MIN] = d_min
+    info[INFO_BD_MAX] = bd_max
+    info[INFO_BD_MIN] = bd_min
+    info[INFO_SWITCHES] = switches
+    info[INFO_SEP] = sep / total
+    info[INFO_SPLITS] = splits
+    info[INFO_BACK] = back / total
+    return status
+
+
+@K.kernel
+def accel_jacobian_array(x, phi, omega, c, dynamic, region, J):
+    """Array form of :func:`accel_jacobian` at state ``x`` (10) and mesh phase ``phi`` (for tests).
+    ``region`` < -1 means: the region of ``x`` itself. Returns the region used."""
+    k = K.step_consts(c)
+    ce, se, kk = K.excitation(phi, c)
+    s = (x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9])
+    if region < -1:
+        region = K.mesh_t(s, ce, se, omega, k, dynamic)[4]
+    accel_jacobian(s, ce, se, omega, kk, k, dynamic, region, J)
+    return region
