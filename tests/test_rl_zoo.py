@@ -1,9 +1,10 @@
 """rl-zoo3 on the gear task: train with agents/hyperparams/ppo.yml, replay with enjoy, tune with Optuna.
 
-Each test runs rl-zoo3's own command line (``python -m rl_zoo3.train`` / ``rl_zoo3.enjoy``) in a
-subprocess, as a user types it, on a few thousand environment steps. They are marked slow (each
-takes 20-60 s on the 2-core VM: two Python start-ups with torch, numba cache loads, a short
-training); .ci/run runs them explicitly. Installed by ``pip install -e '.[zoo]'`` (in ``dev``).
+The tests that train run rl-zoo3's own command line (``python -m rl_zoo3.train`` / ``rl_zoo3.enjoy``)
+in subprocesses, as a user types it, on a few thousand environment steps. They are marked slow (each
+takes 20-60 s or more on the 2-core VM: Python start-ups with torch, numba cache loads, a short
+training); .ci/run runs them explicitly (``pytest -m slow tests/test_rl_zoo.py``).
+Installed by ``pip install -e '.[zoo]'`` (in ``dev``).
 """
 
 from __future__ import annotations
@@ -22,8 +23,6 @@ optuna = pytest.importorskip("optuna", reason="optuna is not installed (pip inst
 yaml = pytest.importorskip("yaml")
 
 from agents.envs import GEAR_ENV_ID  # noqa: E402  (the task the tests train on; follows the package default)
-
-pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "agents" / "hyperparams" / "ppo.yml"
@@ -80,6 +79,7 @@ def test_rl_zoo_hyperparams_file_matches_the_shipped_policy():
     assert set(entry) - zoo_keys <= set(inspect.signature(PPO.__init__).parameters)
 
 
+@pytest.mark.slow
 def test_rl_zoo_train_then_enjoy_replays_what_gear_env_evaluates(tmp_path):
     """rl_zoo3.train reads the conf file (values in the saved config.yml) and writes a model with its
     VecNormalize statistics; rl_zoo3.enjoy replays it, and its first episode's return equals the
@@ -130,6 +130,7 @@ def _journal(path: Path):
     return JournalStorage(JournalFileBackend(str(path)))
 
 
+@pytest.mark.slow
 def test_rl_zoo_optimize_two_workers_share_one_journal_study(tmp_path):
     """Two rl-zoo3 --optimize processes started at the same time (as on two machines sharing a
     folder) add their trials to one Optuna study in a journal file; the study then has both trials,

@@ -58,21 +58,23 @@ def test_rllib_make_vec_builds_the_native_vector_env():
     venv.close()
 
 
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """One short RLlib training run through the example's command line (JSON + checkpoint)."""
+    mod = _example()
+    d = tmp_path_factory.mktemp("rllib")
+    out, ckpt = d / "rllib.json", d / "ckpt"
+    args = ["--timesteps", "1000", "--num-env-runners", "1", "--num-envs-per-runner", "4"]
+    args += ["--rollout-fragment-length", "128", "--eval-episodes", "2", "--eval-seed", "0", "--num-cpus", "2"]
+    assert mod.main([*args, "--checkpoint", str(ckpt), "--out", str(out)]) == 0
+    return mod, json.loads(out.read_text()), ckpt, out
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(
     not HAS_RLLIB, reason="RLlib is not installed (pip install -e '.[rllib]'; .ci/run uses .ci-venv-rllib)"
 )
 class TestRLlibTrainAndCompare:
-    @pytest.fixture(scope="class")
-    def run(self, tmp_path_factory):
-        mod = _example()
-        d = tmp_path_factory.mktemp("rllib")
-        out, ckpt = d / "rllib.json", d / "ckpt"
-        args = ["--timesteps", "1000", "--num-env-runners", "1", "--num-envs-per-runner", "4"]
-        args += ["--rollout-fragment-length", "128", "--eval-episodes", "2", "--eval-seed", "0", "--num-cpus", "2"]
-        assert mod.main([*args, "--checkpoint", str(ckpt), "--out", str(out)]) == 0
-        return mod, json.loads(out.read_text()), ckpt, out
-
     def test_rllib_trains_on_the_native_vector_env(self, run):
         mod, res, _, _ = run
         r = res["rllib"]
