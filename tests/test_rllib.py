@@ -121,3 +121,13 @@ class TestRLlibTrainAndCompare:
         with pytest.raises(SystemExit) as e:
             mod.main(["--timesteps", "1", "--out", str(out)])
         assert e.value.code == 2 and out.read_bytes() == before
+
+
+def test_rllib_gymnasium_vector_env_closes_after_a_failed_init():
+    """RLlib's gymnasium (1.2.2) closes vector envs from ``VectorEnv.__del__``, also when __init__
+    raised before setting any attribute: close() must then do nothing, not raise AttributeError."""
+    with pytest.raises(ValueError, match="num_envs"):
+        GearSpeedVectorEnv(num_envs=0)
+    env = GearSpeedVectorEnv.__new__(GearSpeedVectorEnv)  # the state __del__ sees after that error
+    env.close()
+    assert env.closed
