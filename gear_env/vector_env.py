@@ -216,7 +216,8 @@ class GearSpeedVectorEnv(VectorEnv):
         return self._renderer.draw(np.array(self._history, float).reshape(-1, 4), self._core.hist[0].copy(), True)
 
     def close_extras(self, **kwargs: Any) -> None:
-        if self._renderer is not None:
+        # getattr: gymnasium < 1.3 calls close() from __del__, also when __init__ raised early
+        if getattr(self, "_renderer", None) is not None:
             self._renderer.close()
             self._renderer = None
 
