@@ -39,4 +39,6 @@ def test_readme_block_runs_as_saved_script(index, tmp_path):
     proc = subprocess.run(
         [sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
     )
-    assert proc.returncode == 0, f"README Python block {index} failed as a script:\n{block}\n--- stderr ---\n{proc.stderr[-3000:]}"
+    assert proc.returncode == 0, (
+        f"README Python block {index} failed as a script:\n{block}\n--- stderr ---\n{proc.stderr[-3000:]}"
+    )
