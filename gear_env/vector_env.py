@@ -97,7 +97,9 @@ class GearSpeedVectorEnv(VectorEnv):
         self.single_action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.obs_names = self._core.obs_names()
+        self.observation_names: tuple[str, ...] = self._core.observation_names
+        """Name of each entry of a sub-env's observation (:mod:`gear_env.env_terms` ``OBSERVATIONS``)."""
+        self.obs_names = list(self.observation_names)  # older name, kept
         self._rngs = _seed_generators(self.num_envs, None)
         self._autoreset = np.zeros(self.num_envs, bool)
         self._needs_reset = True
