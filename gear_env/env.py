@@ -14,7 +14,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .env_config import GearSpeedConfig
-from .env_core import INFO_KEYS, REWARD_KEYS, SENSOR_NAMES, TERMS, GearSpeedCore
+from .env_core import INFO_KEYS, REWARD_KEYS, SENSOR_NAMES, TERMS, GearSpeedCore, check_options, check_seed
 
 
 def check_action(action: Any, n: int | None = None) -> np.ndarray:
@@ -144,7 +144,13 @@ class GearSpeedEnv(gym.Env):
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """Start an episode; ``options={"omega": w}`` fixes the initial meshing frequency."""
+        """Start an episode; ``options={"omega": w}`` fixes the initial meshing frequency.
+
+        ``seed``: None or an integer >= 0; ``options``: None or a dict (only key ``"omega"``);
+        anything else raises ``ValueError`` before the env changes.
+        """
+        seed = check_seed(seed)  # an np.int64 becomes an int (Gymnasium's seeding takes only int)
+        check_options(options, ("omega",))
         super().reset(seed=seed)
         self._core.reset_rows(np.array([0]), [self.np_random], options)
         self._needs_reset = False

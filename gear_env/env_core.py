@@ -16,6 +16,7 @@ static mesh force F_s); time per step in seconds of physical time.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -47,6 +48,35 @@ REWARD_KEYS = TERMS.reward_keys
 """``reward_*`` keys; the reward is their sum, in this order."""
 COST_KEYS = TERMS.cost_keys
 """``cost_*`` keys (none in ``GearSpeed-v0``); ``info["cost"]`` is their sum."""
+
+
+def check_options(options: Any, allowed: Sequence[str]) -> dict[str, Any]:
+    """Reset options as a dict: None (no options) or a mapping whose keys are in ``allowed``.
+
+    Raises ``ValueError`` naming the options for anything else (a string, list, number, unknown key).
+    """
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise ValueError(f"reset options must be a dict or None, got {type(options).__name__} {_short(options)}")
+    unknown = [k for k in options if k not in allowed]
+    if unknown:
+        raise ValueError(f"unknown reset option(s) {_short(unknown)}; valid options: {list(allowed)}")
+    return dict(options)
+
+
+def check_seed(seed: Any, what: str = "seed") -> int | None:
+    """A seed: None or an integer >= 0 (bools, floats, strings and negative numbers raise ``ValueError``)."""
+    if seed is None:
+        return None
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"{what} must be None or an integer >= 0, got {_short(seed)}")
+    return int(seed)
+
+
+def _short(v: Any) -> str:
+    r = repr(v)
+    return r if len(r) <= 80 else r[:77] + "..."
 
 
 def periodicity_defect(hist: np.ndarray, defect_scale: float) -> tuple[np.ndarray, np.ndarray]:
@@ -117,6 +147,18 @@ class GearSpeedCore:
         self._pc_buf = np.zeros((1, cfg.periods_per_step, K.N_PC))
         self._st_buf = np.zeros((1, K.N_STATS))
         self._zeros = np.zeros(n)
+
+    # ------------------------------------------------------------------ pickling
+    def __getstate__(self) -> dict[str, Any]:
+        d = self.__dict__.copy()
+        # a view of C: pickled (or deep-copied) on its own it would become a copy frozen at this
+        # moment, and every later episode would run with these physics (issue 15 item 7)
+        del d["_C_ro"]
+        return d
+
+    def __setstate__(self, d: dict[str, Any]) -> None:
+        self.__dict__.update(d)
+        self._C_ro = K.readonly(self.C)
 
     # ------------------------------------------------------------------ info access
     @property
@@ -238,7 +280,7 @@ class GearSpeedCore:
         cfg = self.config
         rows = np.asarray(rows, np.int64)
         w_init = np.empty(len(rows))
-        raw = None if not options else options.get("omega")
+        raw = None if not options else check_options(options, ("omega",)).get("omega")
         forced: float | None = None
         if raw is not None:
             try:  # a string, list or bool is reported like an out-of-range number
@@ -303,4 +345,14 @@ class GearSpeedCore:
         return self._post(rows, st, ok, elapsed, w0, w1, False)
 
 
-__all__ = ["COST_KEYS", "GearSpeedCore", "INFO_KEYS", "REWARD_KEYS", "SENSOR_NAMES", "TERMS", "periodicity_defect"]
+__all__ = [
+    "COST_KEYS",
+    "GearSpeedCore",
+    "check_options",
+    "check_seed",
+    "INFO_KEYS",
+    "REWARD_KEYS",
+    "SENSOR_NAMES",
+    "TERMS",
+    "periodicity_defect",
+]
