@@ -32,7 +32,8 @@ def _seed_generators(num_envs: int, seed: int | Sequence[int | None] | None) -> 
         ss = np.random.SeedSequence()
         return [np.random.default_rng(s) for s in ss.spawn(num_envs)]
     if isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)):
-        s0 = check_seed(seed)  # the single env's rule: an integer >= 0
+        s0 = int(seed)
+        check_seed(s0)  # the single env's rule: an integer >= 0
         return [gym.utils.seeding.np_random(s0 + i)[0] for i in range(num_envs)]
     try:
         seeds = [] if isinstance(seed, (bool, np.bool_, str, bytes)) else list(seed)
