@@ -26,6 +26,7 @@ _SOURCES = (
     "kernels.py",
     "batch_kernels.py",
     "env_kernels.py",
+    "env_terms.py",
     "analysis/lyapunov_kernel.py",
     "analysis/testsystems.py",
 )

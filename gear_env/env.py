@@ -14,7 +14,7 @@ import numpy as np
 from gymnasium import spaces
 
 from .env_config import GearSpeedConfig
-from .env_core import INFO_KEYS, REWARD_KEYS, SENSOR_NAMES, GearSpeedCore
+from .env_core import INFO_KEYS, REWARD_KEYS, SENSOR_NAMES, TERMS, GearSpeedCore, check_options, check_seed
 
 
 def check_action(action: Any, n: int | None = None) -> np.ndarray:
@@ -74,20 +74,7 @@ class GearSpeedEnv(gym.Env):
 
     ``Box(float32)`` of sensor-like features of the last step (``observation="sensors"``):
 
-    | Num | Observation        | Meaning                                                              | Min | Max |
-    |-----|--------------------|----------------------------------------------------------------------|-----|-----|
-    | 0   | omega              | 2 (omega - omega_min)/(omega_max - omega_min) - 1 (end of step)      | -1  | 1   |
-    | 1   | domega             | change of omega in the step / max_domega                             | -1  | 1   |
-    | 2   | force_rms          | log1p(RMS of the dynamic mesh force / F_s)                           | 0   | 10  |
-    | 3   | force_peak         | log1p(peak mesh force / F_s)                                         | 0   | 10  |
-    | 4   | translation_rms    | log1p(dynamic RMS bearing deflection / static deflection)            | 0   | 10  |
-    | 5   | defect             | log1p(periodicity defect / defect_scale) (Poincare section)          | 0   | 10  |
-    | 6   | period             | detected period n/8 (n = 1..8), 0 if not periodic                    | 0   | 1   |
-    | 7   | contact_loss       | fraction of time the teeth were apart or in back contact             | 0   | 1   |
-    | 8   | drive_impacts      | drive-side re-impacts per mesh period                                | 0   | 10  |
-    | 9   | back_impacts       | back-side impacts per mesh period                                    | 0   | 10  |
-    | 10  | demand (optional)  | required omega of the next step, scaled like omega (only if demand)  | -1  | 1   |
-    | +10 | state (optional)   | ``observation="full"``: X_p, Y_p, X_g, Y_g, U and rates [b0]       | -1e6| 1e6 |
+    {observations}
 
     F_s is the static mesh force. The periodicity defect is ``min_{p=1..8} max_k |P_{k+p} - P_k|``
     over the last ``poincare_window`` (16) Poincare samples P_k = (Delta, dU/omega) [b0], one per
@@ -95,21 +82,15 @@ class GearSpeedEnv(gym.Env):
 
     ## Rewards
 
-    Per step, with c = clip(defect / defect_scale, 0, 1) (defect_scale = 0.02 b0) and F_peak the
-    largest mesh force of the step::
+    Per step, with c = clip(defect / defect_scale, 0, 1) (defect_scale = 0.02 b0), F_peak the
+    largest mesh force of the step and F_s the static one, the reward is the sum of the terms (each
+    in ``info``; on a diverging step only ``reward_divergence`` is not 0):
 
-        r =   w_throughput * omega_mean / omega_max                  (reward_throughput)
-            - w_chaos * c                                            (reward_chaos)
-            - w_contact * contact_loss_fraction                      (reward_contact)
-            - w_impact * (drive re-impacts + 5 back impacts) / period (reward_impact)
-            - w_vibration * max(0, F_peak/F_s - 1) / 10              (reward_vibration)
-            - w_rate * (domega / max_domega)^2                       (reward_rate)
-            - w_demand * max(0, demand - omega_mean) / omega_max     (reward_demand, if a demand is set)
+    {rewards}
 
-    Defaults: w_throughput=1, w_chaos=1, w_contact=0.5, w_impact=0.2, w_vibration=0.5, w_rate=0.02,
-    w_demand=2. A diverging step gives ``-divergence_penalty`` (10) and all other terms 0
-    (reward_divergence). Each term is in ``info``; they add up to the reward. With the default
-    model the best constant speed is omega ~1.2 (docs/ENVIRONMENT.md has the steady reward curve).
+    The terms, their weights and the info keys are declared in :mod:`gear_env.env_terms`. With the
+    default model the best constant speed is omega ~1.2 (docs/ENVIRONMENT.md has the steady reward
+    curve).
 
     ## Starting State
 
@@ -126,13 +107,9 @@ class GearSpeedEnv(gym.Env):
 
     ## Info
 
-    The same keys on every step (and on reset): the reward terms, ``omega``, ``omega_mean``,
-    ``domega``, ``demand``, the features (``force_rms``, ``force_peak`` relative to F_s,
-    ``translation_rms`` [b0], ``defect`` [b0], ``period``, ``chaos`` (c), ``contact_loss``,
-    ``drive_impacts``, ``back_impacts`` (counts in the step)), ``nonperiodic`` (c > 0.5),
-    ``step_time_s`` (physical seconds of the step), ``diverged``, and running episode totals
-    ``episode_*`` (return, steps, throughput = mean omega, physical time [s] in periodic and
-    non-periodic motion, impacts, contact-loss fraction), complete on the final step.
+    The same keys on every step (and on reset): the reward terms above, then
+
+    {info}
 
     ## Arguments
 
@@ -158,14 +135,22 @@ class GearSpeedEnv(gym.Env):
         lo, hi = self._core.observation_bounds()
         self.observation_space = spaces.Box(lo, hi, dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
-        self.obs_names = self._core.obs_names()
+        self.observation_names: tuple[str, ...] = self._core.observation_names
+        """Name of each observation entry (the ``OBSERVATIONS`` entries of :mod:`gear_env.env_terms`)."""
+        self.obs_names = list(self.observation_names)  # older name, kept
         self._needs_reset = True
         self._history: list[tuple[float, float, float, float]] = []  # (omega, chaos, contact loss, force peak)
         self._renderer: Any = None
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """Start an episode; ``options={"omega": w}`` fixes the initial meshing frequency."""
+        """Start an episode; ``options={"omega": w}`` fixes the initial meshing frequency.
+
+        ``seed``: None or an integer >= 0; ``options``: None or a dict (only key ``"omega"``);
+        anything else raises ``ValueError`` before the env changes.
+        """
+        seed = check_seed(seed)  # an np.int64 becomes an int (Gymnasium's seeding takes only int)
+        check_options(options, ("omega",))
         super().reset(seed=seed)
         self._core.reset_rows(np.array([0]), [self.np_random], options)
         self._needs_reset = False
@@ -223,6 +208,17 @@ class GearSpeedEnv(gym.Env):
         d = self.__dict__.copy()
         d["_renderer"] = None
         return d
+
+
+def _doc_tables(doc: str) -> str:
+    """Fill the ``{observations}``, ``{rewards}`` and ``{info}`` tables of the class docstring from the table."""
+    for which in ("observations", "rewards", "info"):
+        table = TERMS.markdown(which).replace("\n", "\n    ")
+        doc = doc.replace("{" + which + "}", table)
+    return doc
+
+
+GearSpeedEnv.__doc__ = _doc_tables(GearSpeedEnv.__doc__ or "")
 
 
 __all__ = ["GearSpeedConfig", "GearSpeedEnv", "INFO_KEYS", "REWARD_KEYS", "SENSOR_NAMES", "check_action"]

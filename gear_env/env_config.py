@@ -8,50 +8,120 @@ naming the field and its allowed range.
 from __future__ import annotations
 
 import json
-import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
-from .params import C_FS, MODELS, GearParams
+from . import env_terms as ET
+from .env_terms import ACTION_MODES, DEMAND_PRESETS, MIN_STATIC_MESH_FORCE, OBSERVATION_SETS
+from .params import MODELS, GearParams
 
-ACTION_MODES = ("delta", "target")
-OBSERVATION_SETS = ("sensors", "full")
-DEMAND_PRESETS = ("steps", "ramp")
-MIN_STATIC_MESH_FORCE = 1e-6
-"""Smallest static mesh force F_s [k_m0 b0] the env accepts (the default pair has 0.0275)."""
+assert tuple(MODELS) == ET.BACKLASH_MODELS
 
-
-def _real(name: str, value: Any, lo: float, hi: float, lo_open: bool = False, hi_open: bool = False) -> float:
-    """Validate a real number in [lo, hi] (or open ends) and return it as float."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"GearSpeedConfig.{name} must be a real number, got {value!r}")
-    v = float(value)
-    ok = math.isfinite(v) and (v > lo if lo_open else v >= lo) and (v < hi if hi_open else v <= hi)
-    if not ok:
-        rng = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
-        raise ValueError(f"GearSpeedConfig.{name} must be in {rng}, got {value!r}")
-    return v
+_C = TypeVar("_C", bound="TableConfig")
 
 
-def _int(name: str, value: Any, lo: int, hi: int) -> int:
-    """Validate an integer in [lo, hi]."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
-        raise ValueError(f"GearSpeedConfig.{name} must be an integer in [{lo}, {hi}], got {value!r}")
-    return int(value)
+class TableConfig:
+    """Base of the configs whose fields come from a task's entries in :mod:`gear_env.env_terms`.
+
+    Subclasses are made with :func:`table_config`; validation runs field by field in table order
+    (each setting's ``check`` sees the fields before it already normalised).
+    """
+
+    TERMS: ET.TaskTerms  # set by table_config
+
+    if TYPE_CHECKING:  # the fields are generated from the table
+
+        def __init__(self, **settings: Any) -> None: ...
+
+        def __getattr__(self, name: str) -> Any: ...
+
+    def __post_init__(self) -> None:
+        cls = type(self).__name__
+        for st in self.TERMS.settings:
+            object.__setattr__(self, st.name, st.check(f"{cls}.{st.name}", getattr(self, st.name), self))
+
+    @classmethod
+    def field_names(cls) -> list[str]:
+        """Names of all settings."""
+        return [f.name for f in fields(cls)]  # type: ignore[arg-type]  # a dataclass made by table_config
+
+    @classmethod
+    def from_kwargs(cls: type[_C], config: Any = None, **kwargs: Any) -> _C:
+        """Build from a config (or dict) plus keyword overrides; unknown keys raise ``ValueError``."""
+        base: dict[str, Any] = {}
+        if isinstance(config, cls):
+            base = {name: getattr(config, name) for name in cls.field_names()}
+        elif isinstance(config, Mapping):
+            base = dict(config)
+        elif config is not None:
+            raise ValueError(f"config must be a {cls.__name__}, a dict or None, got {type(config).__name__}")
+        base.update(kwargs)
+        valid = cls.field_names()
+        unknown = sorted(set(base) - set(valid))
+        if unknown:
+            raise ValueError(f"unknown {cls.__name__} key(s) {unknown}; valid keys: {valid}")
+        return cls(**base)
+
+    def replace(self: _C, **changes: Any) -> _C:
+        """A copy with some settings changed (validated again)."""
+        return type(self).from_kwargs(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (``params`` as a dict of SI values)."""
+        out: dict[str, Any] = {}
+        for name in self.field_names():
+            v = getattr(self, name)
+            if isinstance(v, GearParams):
+                v = v.to_dict()
+            elif isinstance(v, tuple):
+                v = [list(p) if isinstance(p, tuple) else p for p in v]
+            out[name] = v
+        return out
+
+    @classmethod
+    def from_json(cls: type[_C], path: str) -> _C:
+        """Read a JSON object of settings (the ``--config`` file of the CLI)."""
+        with open(path, encoding="utf-8-sig") as fh:  # -sig: tolerate a byte-order mark
+            try:
+                data = json.load(fh)
+            except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+                raise ValueError(f"config file {path!r} is not valid JSON: {exc}") from None
+        if not isinstance(data, dict):
+            raise ValueError(f"config file {path!r} must hold a JSON object of settings")
+        return cls.from_kwargs(data)
 
 
-def _choice(name: str, value: Any, choices: Sequence[str]) -> str:
-    if not isinstance(value, str) or value not in choices:
-        raise ValueError(f"GearSpeedConfig.{name} must be one of {list(choices)}, got {value!r}")
-    return value
+def table_config(task_id: str) -> Callable[[type[_C]], type[_C]]:
+    """Class decorator: a frozen dataclass whose fields are the settings of ``task_id`` in
+    :mod:`gear_env.env_terms` (names, defaults and order from the table, checks in ``__post_init__``)."""
+
+    def make(cls: type[_C]) -> type[_C]:
+        terms = ET.task(task_id)
+        ann = dict(cls.__dict__.get("__annotations__", {}))
+        for st in terms.settings:
+            if st.name in cls.__dict__:
+                raise TypeError(f"{cls.__name__}.{st.name} is declared in env_terms; do not redeclare it")
+            ann[st.name] = "Any"
+            setattr(cls, st.name, st.default)
+        cls.__annotations__ = ann
+        cls.TERMS = terms
+        return dataclass(frozen=True)(cls)
+
+    return make
 
 
-@dataclass(frozen=True)
-class GearSpeedConfig:
+@table_config("GearSpeed-v0")
+class GearSpeedConfig(TableConfig):
     """Settings of :class:`gear_env.env.GearSpeedEnv` (all keyword arguments of ``gym.make``).
+
+    The fields, their defaults, checks and meaning are the ``GearSpeed-v0`` entries of
+    :mod:`gear_env.env_terms` (``SETTINGS`` and the reward terms' weights); the table is in
+    docs/ENVIRONMENT.md. Every field has a default; :meth:`from_kwargs` (used by ``gym.make``)
+    rejects unknown keys with the list of valid ones, and ``__post_init__`` rejects out-of-range
+    values with a message naming the field and its allowed range.
 
     Physics:
         params: :class:`GearParams` or a dict of its fields (SI units); default Table 1.
@@ -92,116 +162,6 @@ class GearSpeedConfig:
         costs this many drive-side re-impacts) and divergence_penalty (reward of a diverging step).
     """
 
-    params: Any = None
-    model: str = "dynamic"
-    steps_per_period: int = 64
-    randomize_params: bool = False
-    randomize_scale: float = 0.1
-    periods_per_step: int = 24
-    omega_min: float = 0.1
-    omega_max: float = 3.0
-    max_domega: float = 0.05
-    action_mode: str = "delta"
-    max_steps: int = 200
-    initial_omega: Any = None
-    warmup_periods: int = 48
-    demand: Any = None
-    observation: str = "sensors"
-    poincare_window: int = 16
-    defect_scale: float = 0.02
-    w_throughput: float = 1.0
-    w_chaos: float = 1.0
-    w_contact: float = 0.5
-    w_impact: float = 0.2
-    w_vibration: float = 0.5
-    w_rate: float = 0.02
-    w_demand: float = 2.0
-    back_impact_weight: float = 5.0
-    divergence_penalty: float = 10.0
-
-    def __post_init__(self) -> None:
-        s = object.__setattr__
-        p = self.params
-        if p is None:
-            p = GearParams()
-        elif isinstance(p, Mapping):
-            p = GearParams.from_dict(dict(p))
-        elif not isinstance(p, GearParams):
-            raise ValueError(f"GearSpeedConfig.params must be a GearParams, a dict of its fields or None, got {p!r}")
-        s(self, "params", p)
-        if not p.consts[C_FS] >= MIN_STATIC_MESH_FORCE:  # features and rewards are forces / F_s: F_s = 0 gives inf
-            raise ValueError(
-                "GearSpeedConfig.params must load the mesh (T_p, T_g > 0): the env scales forces by the static mesh "
-                f"force F_s, got F_s = {p.consts[C_FS]:g} k_m0 b0 (need >= {MIN_STATIC_MESH_FORCE:g})"
-            )
-        _choice("model", self.model, MODELS)
-        s(self, "steps_per_period", _int("steps_per_period", self.steps_per_period, 16, 1024))
-        if not isinstance(self.randomize_params, (bool, np.bool_)):
-            raise ValueError(f"GearSpeedConfig.randomize_params must be True or False, got {self.randomize_params!r}")
-        s(self, "randomize_params", bool(self.randomize_params))
-        s(self, "randomize_scale", _real("randomize_scale", self.randomize_scale, 0.0, 0.5))
-        s(self, "periods_per_step", _int("periods_per_step", self.periods_per_step, 1, 1000))
-        s(self, "omega_min", _real("omega_min", self.omega_min, 0.0, 20.0, lo_open=True))
-        s(self, "omega_max", _real("omega_max", self.omega_max, 0.0, 20.0, lo_open=True))
-        if self.omega_max <= self.omega_min:
-            raise ValueError(
-                f"GearSpeedConfig.omega_max must be > omega_min ({self.omega_min:g}), got {self.omega_max!r}"
-            )
-        span = self.omega_max - self.omega_min
-        s(self, "max_domega", _real("max_domega", self.max_domega, 0.0, span, lo_open=True))
-        _choice("action_mode", self.action_mode, ACTION_MODES)
-        s(self, "max_steps", _int("max_steps", self.max_steps, 1, 1_000_000))
-        s(self, "initial_omega", self._check_initial_omega(self.initial_omega))
-        s(self, "warmup_periods", _int("warmup_periods", self.warmup_periods, 0, 100_000))
-        s(self, "demand", self._check_demand(self.demand))
-        _choice("observation", self.observation, OBSERVATION_SETS)
-        s(self, "poincare_window", _int("poincare_window", self.poincare_window, 9, 1000))
-        s(self, "defect_scale", _real("defect_scale", self.defect_scale, 0.0, 100.0, lo_open=True))
-        for name in ("w_throughput", "w_chaos", "w_contact", "w_impact", "w_vibration", "w_rate", "w_demand"):
-            s(self, name, _real(name, getattr(self, name), 0.0, 1e6))
-        s(self, "back_impact_weight", _real("back_impact_weight", self.back_impact_weight, 0.0, 1e6))
-        s(self, "divergence_penalty", _real("divergence_penalty", self.divergence_penalty, 0.0, 1e6))
-
-    # ------------------------------------------------------------------ validation helpers
-    def _check_initial_omega(self, v: Any) -> Any:
-        lo, hi = self.omega_min, self.omega_max
-        if v is None:
-            return None
-        if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool):
-            return _real("initial_omega", v, lo, hi)
-        if isinstance(v, Sequence) and not isinstance(v, str) and len(v) == 2:
-            a = _real("initial_omega[0]", v[0], lo, hi)
-            b = _real("initial_omega[1]", v[1], lo, hi)
-            if b < a:
-                raise ValueError(f"GearSpeedConfig.initial_omega must be (lo, hi) with lo <= hi, got {v!r}")
-            return (a, b)
-        raise ValueError(
-            f"GearSpeedConfig.initial_omega must be None, a number or a pair (lo, hi) in [{lo:g}, {hi:g}], got {v!r}"
-        )
-
-    def _check_demand(self, v: Any) -> Any:
-        if v is None:
-            return None
-        if isinstance(v, str):
-            return _choice("demand", v, DEMAND_PRESETS)
-        if not isinstance(v, Sequence) or len(v) == 0:
-            raise ValueError(
-                f"GearSpeedConfig.demand must be None, one of {list(DEMAND_PRESETS)} or a non-empty list of "
-                f"(t_steps, omega) points, got {v!r}"
-            )
-        pts: list[tuple[float, float]] = []
-        for i, pt in enumerate(v):
-            if not isinstance(pt, Sequence) or isinstance(pt, str) or len(pt) != 2:
-                raise ValueError(f"GearSpeedConfig.demand[{i}] must be a (t_steps, omega) pair, got {pt!r}")
-            t = _real(f"demand[{i}][0] (time in steps)", pt[0], 0.0, 1e9)
-            w = _real(f"demand[{i}][1] (omega)", pt[1], self.omega_min, self.omega_max)
-            if pts and t < pts[-1][0]:
-                raise ValueError(
-                    f"GearSpeedConfig.demand times must be non-decreasing; point {i} has t={t:g} < {pts[-1][0]:g}"
-                )
-            pts.append((t, w))
-        return tuple(pts)
-
     # ------------------------------------------------------------------ derived quantities
     @property
     def warmup_total(self) -> int:
@@ -233,56 +193,13 @@ class GearSpeedConfig:
         out = np.interp(t, pts[:, 0], pts[:, 1])
         return out if np.ndim(step) else float(out)
 
-    # ------------------------------------------------------------------ construction / export
-    @classmethod
-    def field_names(cls) -> list[str]:
-        """Names of all settings."""
-        return [f.name for f in fields(cls)]
 
-    @classmethod
-    def from_kwargs(cls, config: GearSpeedConfig | Mapping[str, Any] | None = None, **kwargs: Any) -> GearSpeedConfig:
-        """Build from a config (or dict) plus keyword overrides; unknown keys raise ``ValueError``."""
-        base: dict[str, Any] = {}
-        if isinstance(config, GearSpeedConfig):
-            base = {f.name: getattr(config, f.name) for f in fields(cls)}
-        elif isinstance(config, Mapping):
-            base = dict(config)
-        elif config is not None:
-            raise ValueError(f"config must be a GearSpeedConfig, a dict or None, got {type(config).__name__}")
-        base.update(kwargs)
-        valid = cls.field_names()
-        unknown = sorted(set(base) - set(valid))
-        if unknown:
-            raise ValueError(f"unknown GearSpeedConfig key(s) {unknown}; valid keys: {valid}")
-        return cls(**base)
-
-    def replace(self, **changes: Any) -> GearSpeedConfig:
-        """A copy with some settings changed (validated again)."""
-        return GearSpeedConfig.from_kwargs(self, **changes)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (``params`` as a dict of SI values)."""
-        out: dict[str, Any] = {}
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if isinstance(v, GearParams):
-                v = v.to_dict()
-            elif isinstance(v, tuple):
-                v = [list(p) if isinstance(p, tuple) else p for p in v]
-            out[f.name] = v
-        return out
-
-    @classmethod
-    def from_json(cls, path: str) -> GearSpeedConfig:
-        """Read a JSON object of settings (the ``--config`` file of the CLI)."""
-        with open(path, encoding="utf-8-sig") as fh:  # -sig: tolerate a byte-order mark
-            try:
-                data = json.load(fh)
-            except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-                raise ValueError(f"config file {path!r} is not valid JSON: {exc}") from None
-        if not isinstance(data, dict):
-            raise ValueError(f"config file {path!r} must hold a JSON object of settings")
-        return cls.from_kwargs(data)
-
-
-__all__ = ["ACTION_MODES", "DEMAND_PRESETS", "OBSERVATION_SETS", "GearSpeedConfig"]
+__all__ = [
+    "ACTION_MODES",
+    "DEMAND_PRESETS",
+    "MIN_STATIC_MESH_FORCE",
+    "OBSERVATION_SETS",
+    "GearSpeedConfig",
+    "TableConfig",
+    "table_config",
+]

@@ -16,12 +16,14 @@ static mesh force F_s); time per step in seconds of physical time.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from . import batch_kernels as BK
 from . import env_kernels as EK
+from . import env_terms as ET
 from . import kernels as K
 from .env_config import GearSpeedConfig
 from .params import C_FS, GearParams, model_code
@@ -32,62 +34,49 @@ MAX_PERIOD = EK.MAX_PERIOD
 LANES_MIN = 2
 """Batches of at least this many rows are advanced by ``batch_kernels.integrate_stats_lanes``."""
 
-SENSOR_NAMES = (
-    "omega",
-    "domega",
-    "force_rms",
-    "force_peak",
-    "translation_rms",
-    "defect",
-    "period",
-    "contact_loss",
-    "drive_impacts",
-    "back_impacts",
-)
+TERMS = ET.task("GearSpeed-v0")
+"""The ``GearSpeed-v0`` entries of :mod:`gear_env.env_terms`."""
+SENSOR_NAMES = tuple(o.name for o in TERMS.observations if o.when is None)
+"""Names of the observation entries present in every configuration."""
 FULL_STATE_NAMES = ("X_p", "Y_p", "X_g", "Y_g", "U", "dX_p", "dY_p", "dX_g", "dY_g", "dU")
-FEATURE_CLIP = EK.FEATURE_CLIP  # upper bound of the log-scaled and per-period features
-STATE_CLIP = EK.STATE_CLIP
+FEATURE_CLIP = ET.FEATURE_CLIP  # upper bound of the log-scaled and per-period features
+STATE_CLIP = ET.STATE_CLIP
 
-# info keys (identical on every step and on reset); value dtype
-INFO_KEYS: dict[str, type] = {
-    "reward_throughput": float,
-    "reward_chaos": float,
-    "reward_contact": float,
-    "reward_impact": float,
-    "reward_vibration": float,
-    "reward_rate": float,
-    "reward_demand": float,
-    "reward_divergence": float,
-    "step": int,
-    "omega": float,
-    "omega_mean": float,
-    "domega": float,
-    "demand": float,
-    "force_rms": float,
-    "force_peak": float,
-    "translation_rms": float,
-    "defect": float,
-    "period": int,
-    "chaos": float,
-    "nonperiodic": bool,
-    "contact_loss": float,
-    "drive_impacts": int,
-    "back_impacts": int,
-    "step_time_s": float,
-    "diverged": bool,
-    "episode_return": float,
-    "episode_steps": int,
-    "episode_throughput": float,
-    "episode_time_s": float,
-    "episode_time_periodic_s": float,
-    "episode_time_nonperiodic_s": float,
-    "episode_steps_periodic": int,
-    "episode_steps_nonperiodic": int,
-    "episode_impacts": int,
-    "episode_back_impacts": int,
-    "episode_contact_loss": float,
-}
-REWARD_KEYS = tuple(k for k in INFO_KEYS if k.startswith("reward_"))
+INFO_KEYS: dict[str, type] = TERMS.info_keys
+"""Info keys of ``GearSpeed-v0`` (identical on every step and on reset) and the type of each value."""
+REWARD_KEYS = TERMS.reward_keys
+"""``reward_*`` keys; the reward is their sum, in this order."""
+COST_KEYS = TERMS.cost_keys
+"""``cost_*`` keys (none in ``GearSpeed-v0``); ``info["cost"]`` is their sum."""
+
+
+def check_options(options: Any, allowed: Sequence[str]) -> dict[str, Any]:
+    """Reset options as a dict: None (no options) or a mapping whose keys are in ``allowed``.
+
+    Raises ``ValueError`` naming the options for anything else (a string, list, number, unknown key).
+    """
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise ValueError(f"reset options must be a dict or None, got {type(options).__name__} {_short(options)}")
+    unknown = [k for k in options if k not in allowed]
+    if unknown:
+        raise ValueError(f"unknown reset option(s) {_short(unknown)}; valid options: {list(allowed)}")
+    return dict(options)
+
+
+def check_seed(seed: Any, what: str = "seed") -> int | None:
+    """A seed: None or an integer >= 0 (bools, floats, strings and negative numbers raise ``ValueError``)."""
+    if seed is None:
+        return None
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"{what} must be None or an integer >= 0, got {_short(seed)}")
+    return int(seed)
+
+
+def _short(v: Any) -> str:
+    r = repr(v)
+    return r if len(r) <= 80 else r[:77] + "..."
 
 
 def periodicity_defect(hist: np.ndarray, defect_scale: float) -> tuple[np.ndarray, np.ndarray]:
@@ -128,9 +117,16 @@ class GearSpeedCore:
         self.n = n
         self.single = single
         self.code = model_code(cfg.model)
-        self.n_obs = len(SENSOR_NAMES) + (1 if cfg.demand is not None else 0)
-        if cfg.observation == "full":
-            self.n_obs += K.NSTATE
+        self.terms = terms = cfg.TERMS  # the task's entries of env_terms
+        self.observation_names = terms.observation_names(cfg)
+        self.n_obs = len(self.observation_names)
+        self._obs_cols = terms.observation_columns(cfg)
+        self._reward_cols = terms.reward_columns()
+        self._cost_cols = terms.cost_columns()
+        info_cols = terms.info_columns()
+        # the info dict reads these columns of I (all of them in the common case: no copy)
+        self._info_cols = None if np.array_equal(info_cols, np.arange(ET.N_INFO)) else info_cols
+        self._info_items = tuple(terms.info_keys.items())
         self._demand_pts = cfg.demand_points()
         self.X = np.zeros((n, K.NSTATE))
         self.A = np.zeros((n, K.NDOF))
@@ -144,33 +140,38 @@ class GearSpeedCore:
         self.hist = np.zeros((n, cfg.poincare_window, 2))
         self.steps = np.zeros(n, np.int64)
         self.obs = np.zeros((n, self.n_obs), np.float32)
-        self.I = np.zeros((n, EK.N_INFO))
+        self.I = np.zeros((n, ET.N_INFO))
+        self.F = np.zeros((n, ET.N_FEATURES), np.float32)
         self.ACC = np.zeros((n, EK.N_ACC))
-        S = np.zeros(EK.N_SETTINGS)
-        S[EK.S_LO], S[EK.S_HI], S[EK.S_DMAX] = cfg.omega_min, cfg.omega_max, cfg.max_domega
-        S[EK.S_DSCALE] = cfg.defect_scale
-        S[EK.S_W_THR], S[EK.S_W_CHAOS], S[EK.S_W_CONTACT] = cfg.w_throughput, cfg.w_chaos, cfg.w_contact
-        S[EK.S_W_IMPACT], S[EK.S_W_VIB], S[EK.S_W_RATE] = cfg.w_impact, cfg.w_vibration, cfg.w_rate
-        S[EK.S_W_DEMAND], S[EK.S_BACK_W], S[EK.S_DIV_PEN] = cfg.w_demand, cfg.back_impact_weight, cfg.divergence_penalty
-        S[EK.S_HAS_DEMAND] = 1.0 if cfg.demand is not None else 0.0
-        S[EK.S_FULL] = 1.0 if cfg.observation == "full" else 0.0
-        S[EK.S_MAX_STEPS], S[EK.S_PPS] = cfg.max_steps, cfg.periods_per_step
-        self.S = S
+        self.S = terms.settings_vector(cfg)
         self._pc_buf = np.zeros((1, cfg.periods_per_step, K.N_PC))
         self._st_buf = np.zeros((1, K.N_STATS))
         self._zeros = np.zeros(n)
+
+    # ------------------------------------------------------------------ pickling
+    def __getstate__(self) -> dict[str, Any]:
+        d = self.__dict__.copy()
+        # a view of C: pickled (or deep-copied) on its own it would become a copy frozen at this
+        # moment, and every later episode would run with these physics (issue 15 item 7)
+        del d["_C_ro"]
+        return d
+
+    def __setstate__(self, d: dict[str, Any]) -> None:
+        self.__dict__.update(d)
+        self._C_ro = K.readonly(self.C)
 
     # ------------------------------------------------------------------ info access
     @property
     def info(self) -> dict[str, np.ndarray]:
         """Info of every row as typed arrays (n,), keys as :data:`INFO_KEYS` (fresh arrays)."""
-        cols = self.I.T.copy()  # one copy; the float columns are rows of it
-        return {k: cols[j] if t is float else cols[j].astype(t) for j, (k, t) in enumerate(_INFO_ITEMS)}
+        I = self.I if self._info_cols is None else self.I[:, self._info_cols]
+        cols = I.T.copy()  # one copy; the float columns are rows of it
+        return {k: cols[j] if t is float else cols[j].astype(t) for j, (k, t) in enumerate(self._info_items)}
 
     def info_row(self, r: int) -> dict[str, Any]:
         """Plain-Python info dict of row ``r`` (floats, ints, bools)."""
-        row = self.I[r].tolist()
-        return {k: t(v) for (k, t), v in zip(_INFO_ITEMS, row)}
+        row = (self.I[r] if self._info_cols is None else self.I[r, self._info_cols]).tolist()
+        return {k: t(v) for (k, t), v in zip(self._info_items, row)}
 
     # ------------------------------------------------------------------ kernels
     def _integrate(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int):
@@ -230,27 +231,11 @@ class GearSpeedCore:
     # ------------------------------------------------------------------ observation space
     def observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(low, high) float32 arrays of the observation Box."""
-        lo = np.zeros(self.n_obs, np.float32)
-        hi = np.full(self.n_obs, FEATURE_CLIP, np.float32)
-        lo[0:2] = -1.0
-        hi[0:2] = 1.0
-        hi[6:8] = 1.0  # period n/8, contact-loss fraction
-        j = len(SENSOR_NAMES)
-        if self.config.demand is not None:
-            lo[j], hi[j] = -1.0, 1.0
-            j += 1
-        lo[j:] = -STATE_CLIP
-        hi[j:] = STATE_CLIP
-        return lo, hi
+        return self.terms.observation_bounds(self.config)
 
     def obs_names(self) -> list[str]:
-        """Name of each observation entry."""
-        names = list(SENSOR_NAMES)
-        if self.config.demand is not None:
-            names.append("demand")
-        if self.config.observation == "full":
-            names += list(FULL_STATE_NAMES)
-        return names
+        """Name of each observation entry (also :attr:`observation_names`)."""
+        return list(self.observation_names)
 
     # ------------------------------------------------------------------ reset / step
     def _episode_params(self, rng: np.random.Generator) -> GearParams:
@@ -282,7 +267,8 @@ class GearSpeedCore:
             demand_next = demand if is_reset else self.demand(steps + 1)
         EK.post_step(
             rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, self.S, self.hist, self.tr_ref, self.fs,
-            self.omega_n, self.steps, self.X, self.ACC, self.I, self.obs, reward, terminated, truncated,
+            self.omega_n, self.steps, self.X, self.ACC, self.I, self._reward_cols, self._cost_cols, self.F,
+            self._obs_cols, self.obs, reward, terminated, truncated,
         )  # fmt: skip
         return reward, terminated, truncated
 
@@ -294,7 +280,7 @@ class GearSpeedCore:
         cfg = self.config
         rows = np.asarray(rows, np.int64)
         w_init = np.empty(len(rows))
-        raw = None if not options else options.get("omega")
+        raw = None if not options else check_options(options, ("omega",)).get("omega")
         forced: float | None = None
         if raw is not None:
             try:  # a string, list or bool is reported like an out-of-range number
@@ -359,8 +345,14 @@ class GearSpeedCore:
         return self._post(rows, st, ok, elapsed, w0, w1, False)
 
 
-_INFO_ITEMS = tuple(INFO_KEYS.items())
-assert tuple(INFO_KEYS) == EK.INFO_COLUMNS
-
-
-__all__ = ["GearSpeedCore", "INFO_KEYS", "REWARD_KEYS", "SENSOR_NAMES", "periodicity_defect"]
+__all__ = [
+    "COST_KEYS",
+    "GearSpeedCore",
+    "check_options",
+    "check_seed",
+    "INFO_KEYS",
+    "REWARD_KEYS",
+    "SENSOR_NAMES",
+    "TERMS",
+    "periodicity_defect",
+]

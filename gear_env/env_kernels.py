@@ -2,8 +2,14 @@
 
 These run after the physics kernels (``kernels.integrate_stats``, ``batch_kernels.integrate_stats_lanes``) and
 replace ~100 small NumPy calls per step by one compiled call, so the Python overhead of a step is a
-few microseconds. Plain arrays in, arrays out. The column layout of the info matrix ``I`` follows
-``INFO_COLUMNS`` (the info keys of the environment, in order); the accumulator matrix ``ACC`` holds
+few microseconds. Plain arrays in, arrays out.
+
+Every column and slot comes from the declarations in :mod:`gear_env.env_terms`: the info matrix ``I``
+has the columns ``INFO_COLUMNS`` (reward terms ``R.<name>``, cost terms ``C.<name>``, the other keys
+``IX.<name>``), the settings vector ``S`` the slots ``P.<setting>``, the feature matrix ``Fm`` the
+columns ``F.<feature>`` (the observation gathers its entries from it). The formula of each reward
+and cost term is one line of :func:`post_step`; the reward is the sum of the columns the task lists
+(``reward_cols``), ``info["cost"]`` the sum of ``cost_cols``. The accumulator matrix ``ACC`` holds
 the running episode sums (``A_*``).
 """
 
@@ -15,71 +21,23 @@ import numpy as np
 from numba import njit
 
 from . import kernels as K
+from .env_terms import COST_COLUMN, FEATURE_CLIP, IX, N_INFO, STATE_CLIP, F, P, R
+from .env_terms import INFO_COLUMNS as _INFO_COLUMNS
+from .env_terms import C as C  # the cost terms' columns, used by their formulas
 
 kernel = njit(cache=True, error_model="numpy")
 
 MAX_PERIOD = 8
-FEATURE_CLIP = 10.0
-STATE_CLIP = K.DIVERGENCE_LIMIT
+assert STATE_CLIP == K.DIVERGENCE_LIMIT
+# the hidden-state features are contiguous and in the kernels' state order
+assert F._fields[F.X_p : F.X_p + K.NSTATE] == ("X_p", "Y_p", "X_g", "Y_g", "U", "dX_p", "dY_p", "dX_g", "dY_g", "dU")
 
-INFO_COLUMNS = (
-    "reward_throughput",
-    "reward_chaos",
-    "reward_contact",
-    "reward_impact",
-    "reward_vibration",
-    "reward_rate",
-    "reward_demand",
-    "reward_divergence",
-    "step",
-    "omega",
-    "omega_mean",
-    "domega",
-    "demand",
-    "force_rms",
-    "force_peak",
-    "translation_rms",
-    "defect",
-    "period",
-    "chaos",
-    "nonperiodic",
-    "contact_loss",
-    "drive_impacts",
-    "back_impacts",
-    "step_time_s",
-    "diverged",
-    "episode_return",
-    "episode_steps",
-    "episode_throughput",
-    "episode_time_s",
-    "episode_time_periodic_s",
-    "episode_time_nonperiodic_s",
-    "episode_steps_periodic",
-    "episode_steps_nonperiodic",
-    "episode_impacts",
-    "episode_back_impacts",
-    "episode_contact_loss",
-)
-(
-    I_R_THR, I_R_CHAOS, I_R_CONTACT, I_R_IMPACT, I_R_VIB, I_R_RATE, I_R_DEMAND, I_R_DIV,
-    I_STEP, I_OMEGA, I_OMEGA_MEAN, I_DOMEGA, I_DEMAND,
-    I_FRMS, I_FPEAK, I_TR, I_DEFECT, I_PERIOD, I_CHAOS, I_NONPER, I_CONTACT, I_DRIVE, I_BACK,
-    I_STEP_TIME, I_DIVERGED,
-    I_EP_RET, I_EP_STEPS, I_EP_THR, I_EP_TIME, I_EP_PER_S, I_EP_NONPER_S, I_EP_PER, I_EP_NONPER,
-    I_EP_IMPACTS, I_EP_BACK, I_EP_CONTACT,
-) = range(len(INFO_COLUMNS))  # fmt: skip
-N_INFO = len(INFO_COLUMNS)
+INFO_COLUMNS = tuple(k for k, _ in _INFO_COLUMNS)
+"""Info keys of every column of ``I``, in order (all tasks of the family)."""
 
 # episode accumulators
 A_RET, A_OMEGA, A_TIME, A_PER_S, A_NONPER_S, A_NAT, A_SEP, A_DRIVE, A_BACK, A_PER, A_NONPER = range(11)
 N_ACC = 11
-
-# settings vector (float64) passed to the kernels
-(
-    S_LO, S_HI, S_DMAX, S_DSCALE, S_W_THR, S_W_CHAOS, S_W_CONTACT, S_W_IMPACT, S_W_VIB, S_W_RATE,
-    S_W_DEMAND, S_BACK_W, S_DIV_PEN, S_HAS_DEMAND, S_FULL, S_MAX_STEPS, S_PPS,
-) = range(17)  # fmt: skip
-N_SETTINGS = 17
 
 
 @kernel
@@ -138,21 +96,21 @@ def _clip(x, lo, hi):
 
 @kernel
 def post_step(rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, S, hist, tr_ref, fs, omega_n, steps, X,
-              ACC, I, obs, reward, terminated, truncated):  # fmt: skip
-    """Features, reward terms, episode sums, info and observation of ``rows`` after an interval.
+              ACC, I, reward_cols, cost_cols, Fm, obs_cols, obs, reward, terminated, truncated):  # fmt: skip
+    """Features, reward and cost terms, episode sums, info and observation of ``rows`` after an interval.
 
     ``is_reset``: the interval was the warm-up of a new episode (no reward; sums start at 0).
     ``demand``: required omega charged in this step; ``demand_next``: shown in the observation.
-    Writes ``I`` (info matrix), ``obs``, ``ACC``, ``steps`` and the (m,) outputs in place.
+    ``reward_cols`` / ``cost_cols``: info columns the task sums into the reward / ``info["cost"]``;
+    ``obs_cols``: feature columns of ``Fm`` the observation takes, in order.
+    Writes ``I`` (info matrix), ``Fm``, ``obs``, ``ACC``, ``steps`` and the (m,) outputs in place.
     """
-    lo = S[S_LO]
-    hi = S[S_HI]
+    lo = S[P.omega_min]
+    hi = S[P.omega_max]
     span = hi - lo
-    scale = S[S_DSCALE]
-    pps = S[S_PPS]
-    has_demand = S[S_HAS_DEMAND] != 0.0
-    full = S[S_FULL] != 0.0
-    n_sens = 10
+    scale = S[P.defect_scale]
+    pps = S[P.periods_per_step]
+    has_demand = S[P.demand] != 0.0
     for j in range(rows.shape[0]):
         r = rows[j]
         good = ok[j]
@@ -177,25 +135,30 @@ def post_step(rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, S, h
         wmean = 0.5 * (wa + wb)
         nonper = good and chaos > 0.5
         per = good and not nonper
-        # ---------------------------------------------------------------- reward
         for c in range(N_INFO):
             I[r, c] = 0.0
         rew = 0.0
+        cost = 0.0
         seconds = 0.0
         if not is_reset:
+            # ------------------------------------------------------------ reward and cost terms:
+            # one line per entry of env_terms.REWARDS (I[r, R.<name>]) and env_terms.COSTS (I[r, C.<name>])
             if good:
-                I[r, I_R_THR] = S[S_W_THR] * wmean / hi
-                I[r, I_R_CHAOS] = -S[S_W_CHAOS] * chaos
-                I[r, I_R_CONTACT] = -S[S_W_CONTACT] * contact
-                I[r, I_R_IMPACT] = -S[S_W_IMPACT] * (drive + S[S_BACK_W] * back) / pps
-                I[r, I_R_VIB] = -S[S_W_VIB] * max(0.0, fpeak - 1.0) / 10.0
-                I[r, I_R_RATE] = -S[S_W_RATE] * (dw / S[S_DMAX]) ** 2
+                I[r, R.throughput] = S[P.w_throughput] * wmean / hi
+                I[r, R.chaos] = -S[P.w_chaos] * chaos
+                I[r, R.contact] = -S[P.w_contact] * contact
+                I[r, R.impact] = -S[P.w_impact] * (drive + S[P.back_impact_weight] * back) / pps
+                I[r, R.vibration] = -S[P.w_vibration] * max(0.0, fpeak - 1.0) / 10.0
+                I[r, R.rate] = -S[P.w_rate] * (dw / S[P.max_domega]) ** 2
                 if has_demand:
-                    I[r, I_R_DEMAND] = -S[S_W_DEMAND] * max(0.0, demand[j] - wmean) / hi
+                    I[r, R.demand] = -S[P.w_demand] * max(0.0, demand[j] - wmean) / hi
             else:
-                I[r, I_R_DIV] = -S[S_DIV_PEN]
-            for c in range(I_R_THR, I_R_DIV + 1):
+                I[r, R.divergence] = -S[P.divergence_penalty]
+            # ------------------------------------------------------------ sums
+            for c in reward_cols:
                 rew += I[r, c]
+            for c in cost_cols:
+                cost += I[r, c]
             steps[r] += 1
             if good:
                 seconds = elapsed[j] / omega_n[r]
@@ -220,67 +183,69 @@ def post_step(rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, S, h
                 ACC[r, c] = 0.0
         reward[j] = rew
         terminated[j] = not good and not is_reset
-        truncated[j] = good and not is_reset and steps[r] >= S[S_MAX_STEPS]
+        truncated[j] = good and not is_reset and steps[r] >= S[P.max_steps]
         # ---------------------------------------------------------------- info
-        I[r, I_STEP] = steps[r]
-        I[r, I_OMEGA] = wb
-        I[r, I_OMEGA_MEAN] = wmean
-        I[r, I_DOMEGA] = dw
-        I[r, I_DEMAND] = demand[j] if has_demand else 0.0
-        I[r, I_FRMS] = frms
-        I[r, I_FPEAK] = fpeak
-        I[r, I_TR] = tr
-        I[r, I_DEFECT] = defect
-        I[r, I_PERIOD] = period
-        I[r, I_CHAOS] = chaos
-        I[r, I_NONPER] = 1.0 if (chaos > 0.5) else 0.0
-        I[r, I_CONTACT] = contact
-        I[r, I_DRIVE] = drive
-        I[r, I_BACK] = back
-        I[r, I_STEP_TIME] = seconds
-        I[r, I_DIVERGED] = 0.0 if good else 1.0
+        if COST_COLUMN >= 0:
+            I[r, COST_COLUMN] = cost
+        I[r, IX.step] = steps[r]
+        I[r, IX.omega] = wb
+        I[r, IX.omega_mean] = wmean
+        I[r, IX.domega] = dw
+        I[r, IX.demand] = demand[j] if has_demand else 0.0
+        I[r, IX.force_rms] = frms
+        I[r, IX.force_peak] = fpeak
+        I[r, IX.translation_rms] = tr
+        I[r, IX.defect] = defect
+        I[r, IX.period] = period
+        I[r, IX.chaos] = chaos
+        I[r, IX.nonperiodic] = 1.0 if (chaos > 0.5) else 0.0
+        I[r, IX.contact_loss] = contact
+        I[r, IX.drive_impacts] = drive
+        I[r, IX.back_impacts] = back
+        I[r, IX.step_time_s] = seconds
+        I[r, IX.diverged] = 0.0 if good else 1.0
         a = ACC[r]
         ns = steps[r]
-        I[r, I_EP_RET] = a[A_RET]
-        I[r, I_EP_STEPS] = ns
-        I[r, I_EP_THR] = a[A_OMEGA] / ns if ns > 0 else 0.0
-        I[r, I_EP_TIME] = a[A_TIME]
-        I[r, I_EP_PER_S] = a[A_PER_S]
-        I[r, I_EP_NONPER_S] = a[A_NONPER_S]
-        I[r, I_EP_PER] = a[A_PER]
-        I[r, I_EP_NONPER] = a[A_NONPER]
-        I[r, I_EP_IMPACTS] = a[A_DRIVE] + a[A_BACK]
-        I[r, I_EP_BACK] = a[A_BACK]
-        I[r, I_EP_CONTACT] = a[A_SEP] / a[A_NAT] if a[A_NAT] > 0 else 0.0
-        # ---------------------------------------------------------------- observation
+        I[r, IX.episode_return] = a[A_RET]
+        I[r, IX.episode_steps] = ns
+        I[r, IX.episode_throughput] = a[A_OMEGA] / ns if ns > 0 else 0.0
+        I[r, IX.episode_time_s] = a[A_TIME]
+        I[r, IX.episode_time_periodic_s] = a[A_PER_S]
+        I[r, IX.episode_time_nonperiodic_s] = a[A_NONPER_S]
+        I[r, IX.episode_steps_periodic] = a[A_PER]
+        I[r, IX.episode_steps_nonperiodic] = a[A_NONPER]
+        I[r, IX.episode_impacts] = a[A_DRIVE] + a[A_BACK]
+        I[r, IX.episode_back_impacts] = a[A_BACK]
+        I[r, IX.episode_contact_loss] = a[A_SEP] / a[A_NAT] if a[A_NAT] > 0 else 0.0
+        # ---------------------------------------------------------------- observation: one line per
+        # entry of env_terms.OBSERVATIONS (Fm[r, F.<name>]); the task's entries are gathered into obs
         if good or is_reset:
+            f = Fm[r]
+            f[F.omega] = _clip(2.0 * (wb - lo) / span - 1.0, -1.0, 1.0)
+            f[F.domega] = _clip(dw / S[P.max_domega], -1.0, 1.0)
+            f[F.force_rms] = _clip(math.log1p(frms), -1.0, FEATURE_CLIP)
+            f[F.force_peak] = _clip(math.log1p(fpeak), -1.0, FEATURE_CLIP)
+            f[F.translation_rms] = _clip(math.log1p(tr / tr_ref[r]), -1.0, FEATURE_CLIP)
+            f[F.defect] = _clip(math.log1p(defect / scale), -1.0, FEATURE_CLIP)
+            f[F.period] = period / MAX_PERIOD
+            f[F.contact_loss] = contact
+            f[F.drive_impacts] = _clip(drive / pps, -1.0, FEATURE_CLIP)
+            f[F.back_impacts] = _clip(back / pps, -1.0, FEATURE_CLIP)
+            f[F.demand] = _clip(2.0 * (demand_next[j] - lo) / span - 1.0, -1.0, 1.0) if has_demand else 0.0
+            for i in range(K.NSTATE):
+                f[F.X_p + i] = _clip(X[r, i], -STATE_CLIP, STATE_CLIP)
             o = obs[r]
-            o[0] = _clip(2.0 * (wb - lo) / span - 1.0, -1.0, 1.0)
-            o[1] = _clip(dw / S[S_DMAX], -1.0, 1.0)
-            o[2] = _clip(math.log1p(frms), -1.0, FEATURE_CLIP)
-            o[3] = _clip(math.log1p(fpeak), -1.0, FEATURE_CLIP)
-            o[4] = _clip(math.log1p(tr / tr_ref[r]), -1.0, FEATURE_CLIP)
-            o[5] = _clip(math.log1p(defect / scale), -1.0, FEATURE_CLIP)
-            o[6] = period / MAX_PERIOD
-            o[7] = contact
-            o[8] = _clip(drive / pps, -1.0, FEATURE_CLIP)
-            o[9] = _clip(back / pps, -1.0, FEATURE_CLIP)
-            c0 = n_sens
-            if has_demand:
-                o[c0] = _clip(2.0 * (demand_next[j] - lo) / span - 1.0, -1.0, 1.0)
-                c0 += 1
-            if full:
-                for i in range(K.NSTATE):
-                    o[c0 + i] = _clip(X[r, i], -STATE_CLIP, STATE_CLIP)
+            for k in range(obs_cols.shape[0]):
+                o[k] = f[obs_cols[k]]
 
 
 @kernel
 def decode_actions(w0, actions, S, target_mode, out):
     """omega at the end of the step for actions in [-1, 1]: delta (w0 + a max_domega) or target
     mode (lo + (a + 1)/2 (hi - lo), rate-limited to max_domega); clipped to [lo, hi]."""
-    lo = S[S_LO]
-    hi = S[S_HI]
-    dmax = S[S_DMAX]
+    lo = S[P.omega_min]
+    hi = S[P.omega_max]
+    dmax = S[P.max_domega]
     for j in range(w0.shape[0]):
         a = min(max(actions[j], -1.0), 1.0)
         if target_mode:

@@ -23,7 +23,7 @@ from gymnasium.vector.utils import batch_space
 
 from .env import check_action
 from .env_config import GearSpeedConfig
-from .env_core import GearSpeedCore
+from .env_core import GearSpeedCore, check_options, check_seed
 
 
 def _seed_generators(num_envs: int, seed: int | Sequence[int | None] | None) -> list[np.random.Generator]:
@@ -31,15 +31,17 @@ def _seed_generators(num_envs: int, seed: int | Sequence[int | None] | None) -> 
     if seed is None:
         ss = np.random.SeedSequence()
         return [np.random.default_rng(s) for s in ss.spawn(num_envs)]
-    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-        return [gym.utils.seeding.np_random(int(seed) + i)[0] for i in range(num_envs)]
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)):
+        s0 = int(seed)
+        check_seed(s0)  # the single env's rule: an integer >= 0
+        return [gym.utils.seeding.np_random(s0 + i)[0] for i in range(num_envs)]
     try:
-        seeds = [] if isinstance(seed, (bool, str, bytes)) else list(seed)
+        seeds = [] if isinstance(seed, (bool, np.bool_, str, bytes)) else list(seed)
     except TypeError:  # e.g. a float
         seeds = []
     if len(seeds) != num_envs:
-        raise ValueError(f"seed must be an int, None or a list of {num_envs} seeds, got {seed!r}")
-    return [gym.utils.seeding.np_random(s)[0] for s in seeds]
+        raise ValueError(f"seed must be None, an integer >= 0 or a list of {num_envs} seeds, got {seed!r}")
+    return [gym.utils.seeding.np_random(check_seed(s, f"seed[{i}]"))[0] for i, s in enumerate(seeds)]
 
 
 class GearSpeedVectorEnv(VectorEnv):
@@ -97,7 +99,9 @@ class GearSpeedVectorEnv(VectorEnv):
         self.single_action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.obs_names = self._core.obs_names()
+        self.observation_names: tuple[str, ...] = self._core.observation_names
+        """Name of each entry of a sub-env's observation (:mod:`gear_env.env_terms` ``OBSERVATIONS``)."""
+        self.obs_names = list(self.observation_names)  # older name, kept
         self._rngs = _seed_generators(self.num_envs, None)
         self._autoreset = np.zeros(self.num_envs, bool)
         self._needs_reset = True
@@ -127,13 +131,13 @@ class GearSpeedVectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
-        """Reset all sub-envs (or those in ``options["reset_mask"]``); ``seed`` -> ``seed + i``."""
-        if seed is not None:
-            self._rngs = _seed_generators(self.num_envs, seed)
-            self._np_random, self._np_random_seed = gym.utils.seeding.np_random(
-                seed if isinstance(seed, (int, np.integer)) else None
-            )
-        opts = dict(options or {})
+        """Reset all sub-envs (or those in ``options["reset_mask"]``); ``seed`` -> ``seed + i``.
+
+        ``seed``: None, an integer >= 0 or a list of ``num_envs`` such seeds (None entries draw
+        fresh entropy); ``options``: None or a dict with keys ``"omega"`` and ``"reset_mask"``.
+        Anything else raises ``ValueError`` (as the single env does) before the env changes.
+        """
+        opts = check_options(options, ("omega", "reset_mask"))
         mask = opts.pop("reset_mask", None)
         if mask is None:
             rows = np.arange(self.num_envs)
@@ -144,6 +148,11 @@ class GearSpeedVectorEnv(VectorEnv):
                     f"options['reset_mask'] must be a bool array of shape ({self.num_envs},), got {m.shape}"
                 )
             rows = np.flatnonzero(m)
+        if seed is not None:  # checked (like the single env's) before anything changes
+            self._rngs = _seed_generators(self.num_envs, seed)
+            self._np_random, self._np_random_seed = gym.utils.seeding.np_random(
+                int(seed) if isinstance(seed, (int, np.integer)) else None
+            )
         self._reset_rows(rows, opts or None)
         self._autoreset[rows] = False
         self._needs_reset = False
@@ -186,20 +195,20 @@ class GearSpeedVectorEnv(VectorEnv):
             final_info = self._info(rows)
             self._reset_rows(rows)
             info = self._info()
-            fo = np.empty(n, dtype=object)
+            # Gymnasium's SyncVectorEnv convention: these keys only on a step where an episode
+            # ended; final_obs None and final_info values 0 (mask False) for the other sub-envs
+            fo = np.full(n, None, dtype=object)
             for i in rows:
                 fo[i] = final_obs[i]
             info["final_obs"] = fo
             info["_final_obs"] = done.copy()
+            for k, v in final_info.items():
+                if not k.startswith("_"):  # the masks are one shared read-only array
+                    v[~done] = 0
             info["final_info"] = final_info
             info["_final_info"] = done.copy()
         else:
             info = self._info()
-            if self.autoreset_mode == AutoresetMode.SAME_STEP:
-                info["final_obs"] = np.empty(n, dtype=object)
-                info["_final_obs"] = np.zeros(n, bool)
-                info["final_info"] = {}
-                info["_final_info"] = np.zeros(n, bool)
         self._autoreset = done
         self._track()
         return self._core.obs.copy(), rewards, terminated, truncated, info

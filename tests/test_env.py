@@ -319,3 +319,45 @@ def test_step_features_match_an_independent_recorded_trajectory():
     fs = env.config.params.dimensionless()["F_s"]
     assert info["force_peak"] == pytest.approx(traj["force"][1:].max() / fs, rel=1e-6)  # Newton tol 1e-10
     assert info["omega"] == pytest.approx(traj.omega[-1])
+
+
+@pytest.mark.parametrize("options", ["str", [1], 5, ("omega", 1.0), {"omgea": 1.0}])
+def test_reset_options_must_be_a_dict_of_known_keys(options):
+    env = GearSpeedEnv(**FAST)
+    with pytest.raises(ValueError, match=r"reset options must be a dict or None|unknown reset option"):
+        env.reset(seed=0, options=options)
+    obs, info = env.reset(seed=0, options={"omega": 1.0})  # the env is usable after the refusal
+    assert info["omega"] == 1.0
+
+
+@pytest.mark.parametrize("seed", [True, False, -1, 1.5, "3", np.bool_(True)])
+def test_reset_seed_must_be_a_non_negative_integer(seed):
+    env = GearSpeedEnv(**FAST)
+    with pytest.raises(ValueError, match="seed must be None or an integer >= 0"):
+        env.reset(seed=seed)
+    a, _ = env.reset(seed=np.int64(3))  # a numpy integer is an integer
+    b, _ = GearSpeedEnv(**FAST).reset(seed=3)
+    np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("how", ["pickle", "deepcopy"])
+def test_copied_env_with_random_params_keeps_drawing_new_physics(how):
+    """Issue 15 item 7: the kernels read the constants through a read-only view of the core's
+    constants; a copy used to turn that view into a frozen array, so after unpickling every episode
+    ran with the physics of the moment of pickling."""
+    import copy
+
+    cfg = dict(randomize_params=True, randomize_scale=0.3, **FAST)
+    env = GearSpeedEnv(**cfg)
+    env.reset(seed=0)
+    clone = pickle.loads(pickle.dumps(env)) if how == "pickle" else copy.deepcopy(env)
+    fresh = GearSpeedEnv(**cfg)
+    firsts = []
+    for seed in (1, 2, 3):
+        ref = rollout(fresh, seed, 4)
+        assert_same(rollout(clone, seed, 4), ref)
+        assert_same(rollout(env, seed, 4), ref)
+        np.testing.assert_array_equal(clone._core._C_ro, clone._core.C)
+        firsts.append(ref[1])
+    # the physics differ between episodes: the same omega and action give other features
+    assert len({r[0].tobytes() for r in firsts}) == 3

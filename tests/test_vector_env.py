@@ -245,3 +245,87 @@ def test_vector_render_rgb_array():
     adapter.reset()
     assert adapter.render().shape[2] == 3
     venv.close()
+
+
+@pytest.mark.parametrize("options", ["str", [1], 5, {"omgea": 1.0}])
+def test_vector_reset_options_must_be_a_dict_of_known_keys(options):
+    venv = GearSpeedVectorEnv(2, **FAST)
+    with pytest.raises(ValueError, match=r"reset options must be a dict or None|unknown reset option"):
+        venv.reset(seed=0, options=options)
+
+
+@pytest.mark.parametrize("seed", [True, -1, 1.5, [0, True], [0, -2]])
+def test_single_and_vector_env_refuse_the_same_seeds(seed):
+    """Issue 15 item 14: ``reset(seed=True)`` was accepted by the single env (as seed 1) and refused
+    by the vector env; both now refuse bools, negative and non-integer seeds alike."""
+    venv = GearSpeedVectorEnv(2, **FAST)
+    venv.reset(seed=0)
+    rngs = [r.bit_generator.state for r in venv._rngs]
+    with pytest.raises(ValueError, match="seed"):
+        venv.reset(seed=seed)
+    assert [r.bit_generator.state for r in venv._rngs] == rngs  # refused before anything changed
+    if not isinstance(seed, list):
+        with pytest.raises(ValueError, match="seed"):
+            GearSpeedEnv(**FAST).reset(seed=seed)
+
+
+@pytest.mark.parametrize("how", ["pickle", "deepcopy"])
+def test_copied_vector_env_with_random_params_keeps_drawing_new_physics(how):
+    import copy
+
+    cfg = dict(randomize_params=True, randomize_scale=0.3, **FAST)
+    venv = GearSpeedVectorEnv(N, **cfg)
+    venv.reset(seed=0)
+    clone = pickle.loads(pickle.dumps(venv)) if how == "pickle" else copy.deepcopy(venv)
+    fresh = GearSpeedVectorEnv(N, **cfg)
+    acts = actions_for(4, N)
+    firsts = []
+    for seed in (10, 20):
+        outs = []
+        for e in (fresh, clone, venv):
+            o, _ = e.reset(seed=seed)
+            seq = [o] + [e.step(a)[0] for a in acts]
+            outs.append(np.stack(seq))
+        np.testing.assert_array_equal(outs[1], outs[0])
+        np.testing.assert_array_equal(outs[2], outs[0])
+        firsts.append(outs[0][1])
+    assert not np.array_equal(firsts[0], firsts[1])
+    assert len({row.tobytes() for row in firsts[0]}) == N  # each sub-env its own physics
+
+
+def test_same_step_final_keys_follow_sync_vector_env():
+    """Issue 15 item 16: with SAME_STEP autoreset, ``final_obs``/``final_info`` (and their masks)
+    appear only on a step where an episode ended, exactly as in Gymnasium's SyncVectorEnv over
+    single envs, with the same values where the masks are set."""
+    cfg = dict(FAST, max_steps=3)
+    ours = GearSpeedVectorEnv(2, autoreset_mode=AutoresetMode.SAME_STEP, **cfg)
+    sync = gym.vector.SyncVectorEnv([lambda: GearSpeedEnv(**cfg)] * 2, autoreset_mode=AutoresetMode.SAME_STEP)
+    o1, i1 = ours.reset(seed=4)
+    o2, i2 = sync.reset(seed=4)
+    np.testing.assert_array_equal(o1, o2)
+    ended = 0
+    for a in actions_for(7, 2, seed=3):
+        o1, r1, te1, tr1, i1 = ours.step(a)
+        o2, r2, te2, tr2, i2 = sync.step(a)
+        np.testing.assert_array_equal(o1, o2)
+        np.testing.assert_array_equal(r1, r2)
+        assert set(i1) == set(i2)
+        done = te1 | tr1
+        assert ("final_obs" in i1) == done.any()
+        if done.any():
+            ended += 1
+            np.testing.assert_array_equal(i1["_final_obs"], i2["_final_obs"])
+            np.testing.assert_array_equal(i1["_final_info"], i2["_final_info"])
+            for k in range(2):
+                if done[k]:
+                    np.testing.assert_array_equal(i1["final_obs"][k], i2["final_obs"][k])
+                else:
+                    assert i1["final_obs"][k] is None and i2["final_obs"][k] is None
+            f1, f2 = i1["final_info"], i2["final_info"]
+            assert set(f1) == set(f2)
+            for key in INFO_KEYS:
+                np.testing.assert_array_equal(f1[key], f2[key])
+                np.testing.assert_array_equal(f1["_" + key], f2["_" + key])
+        for key in INFO_KEYS:
+            np.testing.assert_array_equal(i1[key], i2[key])
+    assert ended >= 2
