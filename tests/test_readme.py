@@ -42,3 +42,40 @@ def test_readme_block_runs_as_saved_script(index, tmp_path):
     assert proc.returncode == 0, (
         f"README Python block {index} failed as a script:\n{block}\n--- stderr ---\n{proc.stderr[-3000:]}"
     )
+
+
+def _subcommand_options() -> dict[str, set[str]]:
+    """Every ``gear-env`` sub-command with the option strings its parser accepts."""
+    import argparse
+
+    from gear_env.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return {name: {s for a in p._actions for s in a.option_strings} for name, p in sub.choices.items()}
+
+
+COMMAND = re.compile(r"gear-env (\w[\w-]*)((?:[^`\n|]|\\\n)*)")
+
+
+def readme_flags(text: str) -> list[tuple[str, str]]:
+    """(sub-command, --flag) pairs the README names after ``gear-env <sub-command>``."""
+    pairs = []
+    for m in COMMAND.finditer(text.replace("\\\n", " ")):
+        for flag in re.findall(r"(?<![\w-])(--[a-z][a-z0-9-]*)", m.group(2)):
+            pairs.append((m.group(1), flag))
+    return pairs
+
+
+def test_flag_reader_finds_flags_of_each_command():
+    text = "`gear-env sweep --points 3 [--json out.json]` and\n    gear-env train --out x \\\n    --resume\n"
+    assert readme_flags(text) == [("sweep", "--points"), ("sweep", "--json"), ("train", "--out"), ("train", "--resume")]
+
+
+def test_every_command_and_flag_the_readme_names_exists():
+    options = _subcommand_options()
+    text = README.read_text(encoding="utf-8")
+    missing = [
+        f"gear-env {c} {f}" for c, f in readme_flags(text) if c not in options or f not in options[c] | {"--help"}
+    ]
+    assert not missing, "the README names commands/flags that do not exist: " + ", ".join(sorted(set(missing)))
