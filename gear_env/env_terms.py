@@ -422,7 +422,8 @@ def _check_names() -> None:
             raise ValueError(f"env_terms: {kind} name(s) {bad} repeated or not identifiers")
     if COSTS and "cost" in infos:
         raise ValueError("env_terms: 'cost' is the sum of the cost terms; no INFOS entry may use that name")
-    for e in (*all_settings(), *REWARDS, *COSTS, *INFOS, *OBSERVATIONS):
+    entries: list[Any] = [*all_settings(), *REWARDS, *COSTS, *INFOS, *OBSERVATIONS]
+    for e in entries:
         unknown = set(e.tasks) - set(TASKS)
         if unknown:
             raise ValueError(f"env_terms: {e.name!r} names unknown task(s) {sorted(unknown)}; tasks are {list(TASKS)}")

@@ -49,6 +49,8 @@ class _PlainLogFormatter(ticker.Formatter):
         if not x > 0:
             return ""
         if self.minor:
+            if self.axis is None:
+                return ""
             lo, hi = sorted(abs(v) for v in self.axis.get_view_interval())
             if lo <= 0 or hi / lo > 10**1.5:
                 return ""
