@@ -272,3 +272,30 @@ def test_integrate_split_steps_dynamic_model_during_a_ramp():
         wa = wb
     assert splits == st[K.ST_SPLITS]
     assert np.array_equal(x, s[:10]) and np.array_equal(a, s[10:]) and np.array_equal(xo, x)
+
+
+# every name gear_env.kernels had when it was one file (kernels.py, before the split into a package);
+# other modules and branches import them from gear_env.kernels
+_NAMES_BEFORE_SPLIT = """
+BETA C_A0 C_ALPHA0 C_BC C_COS_A0 C_E1 C_EPS_G C_EPS_P C_FS C_GG C_GP C_KAPPA C_MU C_PHI_E C_PHI_K C_R C_SIG_G
+C_SIG_P C_SIN_A0 C_XI_BG C_XI_BP C_XI_M DIVERGED DIVERGENCE_LIMIT DQ_LINEAR FRICTION_SHARPNESS GAMMA GEO_SIZE
+MAX_SPLIT_LEVEL NDOF NEWTON_BAD NEWTON_DONE NEWTON_FAILED NEWTON_MORE NSTATE N_PC N_REC N_STATS OK PC_BD PC_DELTA
+PC_FORCE PC_PSI REC_BD REC_DELTA REC_FORCE REC_OMEGA REC_PHI REC_PSI REC_REGION REC_S ST_BACK_IMPACTS ST_BACK_TIME
+ST_BD_MAX ST_BD_MIN ST_DRIVE_IMPACTS ST_D_MAX ST_D_MIN ST_F_MAX ST_F_MIN ST_F_SQ ST_F_SUM ST_PSI_MAX ST_PSI_MIN
+ST_SEP_TIME ST_SPLITS ST_STEPS ST_TIME ST_TR_MAX ST_TR_SQ ST_U_MAX ST_U_MIN TWO_PI WORK_SIZE _acc_init _acc_step
+_acc_store _diverged_t _excitation_table _integrate_stats_batch _poincare_store_t _record_row_t _stats_init accel
+backlash corrector_t excitation friction_t geometry geometry_t guess_t integrate_record integrate_stats
+integrate_stats_batch integrate_stats_tab kernel kernel_inline load_t mesh_state mesh_t newmark_step newmark_step_t
+newmark_try_t newton_iter_t newton_start_t njit omega_step_t psi_t readonly runtime_int runtime_true split_step_t
+start_step static_equilibrium step_coeffs step_consts store_t
+""".split()
+
+
+def test_kernels_package_keeps_every_name_of_the_single_module():
+    missing = [n for n in _NAMES_BEFORE_SPLIT if not hasattr(K, n)]
+    assert missing == []
+    # the same objects as in the concern modules (one definition each, re-exported)
+    from gear_env.kernels import drivers, layout, mesh, newmark
+
+    assert K.integrate_stats is drivers.integrate_stats and K.backlash is mesh.backlash
+    assert K.newton_iter_t is newmark.newton_iter_t and K.ST_F_MAX == layout.ST_F_MAX
