@@ -83,6 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=1.5, help="CPU seconds per measurement (default 1.5)")
     ap.add_argument("--only", nargs="+", choices=WORKLOADS, default=list(WORKLOADS), help="workloads to run")
     ap.add_argument("--cpu", type=int, default=None, help="core to pin the children to (default: the last)")
+    ap.add_argument("--tree", default=str(ROOT), help="folder holding side B's gear_env (default: this tree)")
     args = ap.parse_args(argv)
     os.environ.setdefault("NUMBA_CACHE_DIR", str(Path(tempfile.gettempdir()) / "gear-env-ab-cache"))
     cpu = args.cpu if args.cpu is not None else (os.cpu_count() or 1) - 1
@@ -94,8 +95,8 @@ def main(argv: list[str] | None = None) -> int:
             ["git", "-C", str(ROOT), "archive", args.ref, "gear_env"], capture_output=True, check=True
         )
         subprocess.run(["tar", "-x", "-C", str(tree_a)], input=arch.stdout, check=True)
-        trees = {"A": tree_a, "B": ROOT}
-        print(f"A = {args.ref} ({tree_a}), B = this tree ({ROOT}); {args.rounds} rounds, {args.seconds} s each")
+        trees = {"A": tree_a, "B": Path(args.tree)}
+        print(f"A = {args.ref} ({tree_a}), B = {args.tree}; {args.rounds} rounds, {args.seconds} s each")
         print("load before:", os.getloadavg())
         ratios: dict[str, list[float]] = {n: [] for n in args.only}
         for r in range(args.rounds):

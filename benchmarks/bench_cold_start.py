@@ -69,11 +69,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rounds", type=int, default=1, help="measurements per tree and child (default 1)")
     ap.add_argument("--ref", default=None, help="also measure this git ref's gear_env (A), interleaved")
     ap.add_argument("--only", nargs="+", choices=sorted(_CHILDREN), default=["env", "sim"])
+    ap.add_argument("--tree", default=str(ROOT), help="folder holding the gear_env to measure (default: this tree)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         cwd = Path(tmp) / "cwd"  # no gear_env in the children's working folder
         cwd.mkdir()
-        trees = {"B": ROOT}
+        trees = {"B": Path(args.tree)}
         if args.ref:
             tree_a = Path(tmp) / "a"
             tree_a.mkdir()
@@ -81,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
                 ["git", "-C", str(ROOT), "archive", args.ref, "gear_env"], capture_output=True, check=True
             )
             subprocess.run(["tar", "-x", "-C", str(tree_a)], input=arch.stdout, check=True)
-            trees = {"A": tree_a, "B": ROOT}
+            trees = {"A": tree_a, "B": Path(args.tree)}
         print(f"trees: {', '.join(f'{k} = {v}' for k, v in trees.items())}; {os.cpu_count()} CPUs")
         res: dict[tuple[str, str], list[float]] = {}
         for r in range(args.rounds):

@@ -70,3 +70,31 @@ GEO_SIZE = 14
 
 
 WORK_SIZE = 80
+
+# The constants of one Newmark step (:func:`kernels.mesh.step_consts`), a tuple of 20 floats that
+# numba keeps in registers: ``k[K_XIM2]`` is 2 xi_m. The indices are compile-time constants, so a
+# named index costs nothing. Natural time, b0 units.
+(
+    K_IEP,  # 1/eps_p (pinion inverse mass ratio)
+    K_IEG,  # 1/eps_g
+    K_C_P,  # pinion bearing damping 2 xi_bp sigma_p
+    K_C_G,  # gear bearing damping 2 xi_bg sigma_g
+    K_K_P,  # pinion bearing stiffness sigma_p^2
+    K_K_G,  # gear bearing stiffness sigma_g^2
+    K_EXT_P,  # pinion weight per unit mass -g_p/eps_p (Y direction)
+    K_EXT_G,  # gear weight per unit mass -g_g/eps_g
+    K_XIM2,  # mesh damping 2 xi_m
+    K_FS,  # static mesh force F_s
+    K_E1,  # transmission error amplitude E1
+    K_A0,  # nominal centre distance A0
+    K_R,  # R = sum of base radii
+    K_INV_R,  # 1/R
+    K_BC,  # nominal half backlash B_c
+    K_SIN_A0,  # sin alpha0
+    K_COS_A0,  # cos alpha0
+    K_MU,  # friction coefficient (0: the paper's model)
+    K_COS_PHI_E,  # cos phi_e
+    K_SIN_PHI_E,  # sin phi_e
+) = range(20)
+N_K = K_SIN_PHI_E + 1
+"""Number of step constants (length of :func:`kernels.mesh.step_consts`)."""

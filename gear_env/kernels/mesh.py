@@ -48,12 +48,35 @@ from ..params import (
     C_XI_M,
 )
 from .jit import kernel, kernel_inline
-from .layout import GEO_SIZE
+from .layout import (
+    GEO_SIZE,
+    K_A0,
+    K_BC,
+    K_C_G,
+    K_C_P,
+    K_COS_A0,
+    K_COS_PHI_E,
+    K_E1,
+    K_EXT_G,
+    K_EXT_P,
+    K_FS,
+    K_IEG,
+    K_IEP,
+    K_INV_R,
+    K_K_G,
+    K_K_P,
+    K_MU,
+    K_R,
+    K_SIN_A0,
+    K_SIN_PHI_E,
+    K_XIM2,
+)
 
 
 @kernel_inline
 def step_consts(c):
-    """The constants one Newmark step needs, as a tuple of scalars (kept in registers).
+    """The constants one Newmark step needs, as a tuple of N_K scalars (kept in registers),
+    indexed by the ``K_*`` names of ``kernels.layout`` (``k[K_XIM2]`` = 2 xi_m, ...), in this order.
 
     (1/eps_p, 1/eps_g, pinion and gear bearing damping and stiffness (natural time), the weights
     per unit mass, 2 xi_m, F_s, E1, A0, R, 1/R, B_c, sin and cos alpha0, mu, cos and sin phi_e).
@@ -112,8 +135,8 @@ def geometry_t(q0, q1, q2, q3, k):
     z = -d2/A_d (the arcsin term): sin psi = sa cz + ca z and cos psi = ca cz - sa z. Two square
     roots and one division (divisions and roots are the dearest operations of a step).
     """
-    A0 = k[11]
-    R = k[12]
+    A0 = k[K_A0]
+    R = k[K_R]
     d1 = A0 - q0 + q2
     d2 = q1 - q3
     ad2 = d1 * d1 + d2 * d2
@@ -128,12 +151,12 @@ def geometry_t(q0, q1, q2, q3, k):
     inv = pinv * ad * ad2
     ca = R * iad
     sa = rs * iad
-    ta = rs * k[13]
+    ta = rs * k[K_INV_R]
     cz = d1 * iad
     z = -d2 * iad
     sp = sa * cz + ca * z
     cp = ca * cz - sa * z
-    bd = k[14] + (ad - A0) * ta
+    bd = k[K_BC] + (ad - A0) * ta
     dalpha_dad = ca * iad * cz * inv  # ca / (A_d sa)
     icz = sa * inv
     db_dad = ta + (ad - A0) * (1.0 + ta * ta) * dalpha_dad
@@ -160,11 +183,11 @@ def mesh_t(s, ce, se, omega, k, dynamic):
     v0, v1, v2, v3, v4 = s[5], s[6], s[7], s[8], s[9]
     dx = q0 - q2
     dy = q1 - q3
-    e1 = k[10]
+    e1 = k[K_E1]
     if dynamic == 0:
-        sp = k[15]
-        cp = k[16]
-        bd = k[14]
+        sp = k[K_SIN_A0]
+        cp = k[K_COS_A0]
+        bd = k[K_BC]
         db0 = 0.0
         db1 = 0.0
         dp0 = 0.0
@@ -189,10 +212,10 @@ def friction_t(ce, se, k):
     (off line-of-action) tooth friction force per unit mesh force. ``ce, se`` = cos, sin(phi + phi_e).
     The friction force mu s F acts on the pinion along (cos psi, sin psi) and on the gear opposite;
     its moment on the gears is neglected. Returns 0 when friction is off (the paper's model)."""
-    mu = k[17]
+    mu = k[K_MU]
     if mu == 0.0:
         return 0.0
-    return mu * math.tanh(FRICTION_SHARPNESS * (se * k[18] - ce * k[19]))
+    return mu * math.tanh(FRICTION_SHARPNESS * (se * k[K_COS_PHI_E] - ce * k[K_SIN_PHI_E]))
 
 
 @kernel_inline
@@ -253,15 +276,15 @@ def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
     """
     k = step_consts(c)
     delta, ddelta, bd, f, region = mesh_state(q, v, ce, se, omega, c, dynamic, geo)
-    F = k[8] * ddelta + kk * f
+    F = k[K_XIM2] * ddelta + kk * f
     sp = geo[12]
     cp = geo[13]
     fr = friction_t(ce, se, k)  # [friction extension] 0 unless GearParams.friction > 0
-    a[0] = -(k[2] * v[0] + k[4] * q[0] + F * (sp - fr * cp) * k[0])
-    a[1] = -(k[2] * v[1] + k[4] * q[1] - F * (cp + fr * sp) * k[0]) + k[6]
-    a[2] = -(k[3] * v[2] + k[5] * q[2] - F * (sp - fr * cp) * k[1])
-    a[3] = -(k[3] * v[3] + k[5] * q[3] + F * (cp + fr * sp) * k[1]) + k[7]
-    a[4] = k[9] - F
+    a[0] = -(k[K_C_P] * v[0] + k[K_K_P] * q[0] + F * (sp - fr * cp) * k[K_IEP])
+    a[1] = -(k[K_C_P] * v[1] + k[K_K_P] * q[1] - F * (cp + fr * sp) * k[K_IEP]) + k[K_EXT_P]
+    a[2] = -(k[K_C_G] * v[2] + k[K_K_G] * q[2] - F * (sp - fr * cp) * k[K_IEG])
+    a[3] = -(k[K_C_G] * v[3] + k[K_K_G] * q[3] + F * (cp + fr * sp) * k[K_IEG]) + k[K_EXT_G]
+    a[4] = k[K_FS] - F
     return F
 
 

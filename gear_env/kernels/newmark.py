@@ -31,7 +31,26 @@ from __future__ import annotations
 import math
 
 from .jit import kernel, kernel_inline, runtime_int
-from .layout import BETA, DIVERGENCE_LIMIT, GAMMA, NDOF, NEWTON_FAILED, NSTATE, OK
+from .layout import (
+    BETA,
+    DIVERGENCE_LIMIT,
+    GAMMA,
+    K_C_G,
+    K_C_P,
+    K_E1,
+    K_EXT_G,
+    K_EXT_P,
+    K_FS,
+    K_IEG,
+    K_IEP,
+    K_K_G,
+    K_K_P,
+    K_XIM2,
+    NDOF,
+    NEWTON_FAILED,
+    NSTATE,
+    OK,
+)
 from .mesh import backlash, excitation, friction_t, mesh_t, psi_t, step_consts
 
 
@@ -42,8 +61,8 @@ def step_coeffs(h, k):
     gear bearings). Loop-invariant while omega is constant."""
     bh2 = BETA * h * h
     gh = GAMMA * h
-    d0 = 1.0 + gh * k[2] + bh2 * k[4]
-    d2 = 1.0 + gh * k[3] + bh2 * k[5]
+    d0 = 1.0 + gh * k[K_C_P] + bh2 * k[K_K_P]
+    d2 = 1.0 + gh * k[K_C_G] + bh2 * k[K_K_G]
     q = 1.0 / (d0 * d2)  # one division for both inverses (recomputed every step of a ramp)
     return h, bh2, gh, h * h * (0.5 - BETA), h * (1.0 - GAMMA), q * d2, q * d0
 
@@ -105,7 +124,8 @@ def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_o
     ``friction=False`` the friction extension is ignored (no tanh call; the batch kernel redoes
     the steps of systems with friction).
     """
-    iep, ieg, c0, c2, k0, k2, ext1, ext3, xim2, Fs = k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7], k[8], k[9]
+    iep, ieg, xim2, Fs = k[K_IEP], k[K_IEG], k[K_XIM2], k[K_FS]
+    c0, c2, k0, k2, ext1, ext3 = k[K_C_P], k[K_C_G], k[K_K_P], k[K_K_G], k[K_EXT_P], k[K_EXT_G]
     h, bh2, gh, hh, h1, idd0, idd2 = hc
     a0, a1, a2, a3, a4 = a
     delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
@@ -168,9 +188,9 @@ def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_o
         cp1 = cp - sp * dpsi
         dx = t[0] - t[2]
         dy = t[1] - t[3]
-        delta1 = dx * sp1 - dy * cp1 + t[4] - k[10] * ce
+        delta1 = dx * sp1 - dy * cp1 + t[4] - k[K_E1] * ce
         psid = dp0 * (t[5] - t[7]) + dp1 * (t[6] - t[8])
-        ddelta1 = (t[5] - t[7]) * sp1 - (t[6] - t[8]) * cp1 + t[9] + k[10] * w_b * se + psid * (dx * cp1 + dy * sp1)
+        ddelta1 = (t[5] - t[7]) * sp1 - (t[6] - t[8]) * cp1 + t[9] + k[K_E1] * w_b * se + psid * (dx * cp1 + dy * sp1)
         f1, region1 = backlash(delta1, bd1)
         if region1 == region:
             return NEWTON_DONE, an, t, mesh, (xim2 * ddelta1 + kk * f1, region1, delta1, bd1, sp1, cp1)
