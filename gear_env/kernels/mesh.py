@@ -3,10 +3,17 @@ equations of motion (MODEL.md sec. 3b), as inline numba leaf functions plus thei
 
 This is the file to open to change a physics term: the backlash law (:func:`backlash`), the
 geometry of the dynamic model (:func:`geometry_t`, eqs. 5-8), the transmission error and the
-stiffness variation (:func:`excitation`), the mesh deflection and force (:func:`mesh_t`), the
-friction extension (:func:`friction_t`), the accelerations (:func:`accel`) and the static
-equilibrium (:func:`static_equilibrium`). The Newmark step (``kernels.newmark``) and the SIMD
-path (``gear_env.batch_kernels``) take their constants from :func:`step_consts`.
+stiffness variation (:func:`excitation`), the mesh deflection and its rate (:func:`deflection_t`),
+the mesh force (:func:`force_t`), the friction extension (:func:`friction_t`), the
+accelerations (:func:`accel`) and the static equilibrium (:func:`static_equilibrium`).
+:func:`mesh_t` gathers the mesh quantities of a state. The Newmark step (``kernels.newmark``:
+the Newton residual, its Jacobian and the Taylor update of the dynamic model) and the SIMD path
+(``gear_env.batch_kernels``) take the deflection, the force and the constants
+(:func:`step_consts`, named by the ``K_*`` indices of ``kernels.layout``) from here. The Newton
+residual writes the bearing and inertia terms of :func:`accel` in residual form,
+``r = a + C v + K q + w F - ext`` with ``w`` the force direction per unit mass; keep the two
+in step (``tests/test_kernels.py`` checks that a converged step satisfies :func:`accel` and the
+reference right-hand side).
 
 ``gear_env/reference.py`` states the same equations in readable NumPy (a right-hand side for
 SciPy's ``solve_ivp``), written independently from MODEL.md. ``tests/test_kernels.py`` compares
@@ -179,11 +186,6 @@ def mesh_t(s, ce, se, omega, k, dynamic):
     Returns (Delta, Delta', B_d, f(Delta), region, sin psi, cos psi, dB/dX_p, dB/dY_p, dpsi/dX_p,
     dpsi/dY_p).
     """
-    q0, q1, q2, q3, q4 = s[0], s[1], s[2], s[3], s[4]
-    v0, v1, v2, v3, v4 = s[5], s[6], s[7], s[8], s[9]
-    dx = q0 - q2
-    dy = q1 - q3
-    e1 = k[K_E1]
     if dynamic == 0:
         sp = k[K_SIN_A0]
         cp = k[K_COS_A0]
@@ -192,15 +194,34 @@ def mesh_t(s, ce, se, omega, k, dynamic):
         db1 = 0.0
         dp0 = 0.0
         dp1 = 0.0
-        delta = dx * sp - dy * cp + q4 - e1 * ce
-        ddelta = (v0 - v2) * sp - (v1 - v3) * cp + v4 + e1 * omega * se
     else:
-        db0, db1, dp0, dp1, bd, sp, cp = geometry_t(q0, q1, q2, q3, k)
-        delta = dx * sp - dy * cp + q4 - e1 * ce
-        psid = dp0 * (v0 - v2) + dp1 * (v1 - v3)
-        ddelta = (v0 - v2) * sp - (v1 - v3) * cp + v4 + e1 * omega * se + psid * (dx * cp + dy * sp)
+        db0, db1, dp0, dp1, bd, sp, cp = geometry_t(s[0], s[1], s[2], s[3], k)
+    delta, ddelta = deflection_t(s, sp, cp, dp0, dp1, ce, se, omega, k, dynamic)
     f, region = backlash(delta, bd)
     return delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1
+
+
+@kernel_inline
+def deflection_t(s, sp, cp, dp0, dp1, ce, se, omega, k, dynamic):
+    """Mesh deflection Delta along the line of action and its rate Delta' (MODEL.md sec. 3) at a state tuple
+    s = (q0..q4, v0..v4, ...), given sin and cos psi and (dynamic model) dpsi/dX_p, dpsi/dY_p; the
+    dynamic model adds the psi' term psi' (dx cos psi + dy sin psi). Returns (Delta, Delta')."""
+    dx = s[0] - s[2]
+    dy = s[1] - s[3]
+    e1 = k[K_E1]
+    delta = dx * sp - dy * cp + s[4] - e1 * ce
+    ddelta = (s[5] - s[7]) * sp - (s[6] - s[8]) * cp + s[9] + e1 * omega * se
+    if dynamic != 0:
+        psid = dp0 * (s[5] - s[7]) + dp1 * (s[6] - s[8])
+        ddelta += psid * (dx * cp + dy * sp)
+    return delta, ddelta
+
+
+@kernel_inline
+def force_t(ddelta, f, kk, k):
+    """Mesh force Fhat = 2 xi_m Delta' + (1 + kappa cos(phi + phi_k)) f(Delta) (MODEL.md sec. 3, natural
+    time); ``kk`` is the stiffness factor, ``f`` the dead-zone function :func:`backlash`."""
+    return k[K_XIM2] * ddelta + kk * f
 
 
 FRICTION_SHARPNESS = 10.0
@@ -276,7 +297,7 @@ def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
     """
     k = step_consts(c)
     delta, ddelta, bd, f, region = mesh_state(q, v, ce, se, omega, c, dynamic, geo)
-    F = k[K_XIM2] * ddelta + kk * f
+    F = force_t(ddelta, f, kk, k)
     sp = geo[12]
     cp = geo[13]
     fr = friction_t(ce, se, k)  # [friction extension] 0 unless GearParams.friction > 0

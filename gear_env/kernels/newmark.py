@@ -37,7 +37,6 @@ from .layout import (
     GAMMA,
     K_C_G,
     K_C_P,
-    K_E1,
     K_EXT_G,
     K_EXT_P,
     K_FS,
@@ -51,7 +50,7 @@ from .layout import (
     NSTATE,
     OK,
 )
-from .mesh import backlash, excitation, friction_t, mesh_t, psi_t, step_consts
+from .mesh import backlash, deflection_t, excitation, force_t, friction_t, mesh_t, psi_t, step_consts
 
 
 @kernel_inline
@@ -129,7 +128,7 @@ def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_o
     h, bh2, gh, hh, h1, idd0, idd2 = hc
     a0, a1, a2, a3, a4 = a
     delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
-    F = xim2 * ddelta + kk * f
+    F = force_t(ddelta, f, kk, k)
     fr = friction_t(ce, se, k) if friction else 0.0  # [friction extension] tilts the force off the LOA
     cd = gh * xim2
     w0 = (sp - fr * cp) * iep
@@ -186,20 +185,16 @@ def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_o
         bd1 = bd + bh2 * (db0 * (e0 - e2) + db1 * (e1 - e3))
         sp1 = sp + cp * dpsi
         cp1 = cp - sp * dpsi
-        dx = t[0] - t[2]
-        dy = t[1] - t[3]
-        delta1 = dx * sp1 - dy * cp1 + t[4] - k[K_E1] * ce
-        psid = dp0 * (t[5] - t[7]) + dp1 * (t[6] - t[8])
-        ddelta1 = (t[5] - t[7]) * sp1 - (t[6] - t[8]) * cp1 + t[9] + k[K_E1] * w_b * se + psid * (dx * cp1 + dy * sp1)
+        delta1, ddelta1 = deflection_t(t, sp1, cp1, dp0, dp1, ce, se, w_b, k, dynamic)
         f1, region1 = backlash(delta1, bd1)
         if region1 == region:
-            return NEWTON_DONE, an, t, mesh, (xim2 * ddelta1 + kk * f1, region1, delta1, bd1, sp1, cp1)
+            return NEWTON_DONE, an, t, mesh, (force_t(ddelta1, f1, kk, k), region1, delta1, bd1, sp1, cp1)
     if dynamic != 0 and taylor_only:
         return NEWTON_MORE, an, t, mesh, (F, region, delta, bd, sp, cp)
     old_region = region
     mesh = mesh_t(t, ce, se, w_b, k, dynamic)
     delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
-    F = xim2 * ddelta + kk * f
+    F = force_t(ddelta, f, kk, k)
     # The backlash force is piecewise linear: for the constant model the update is exact
     # once the region it assumed is the region it lands in. The dynamic model's geometry is
     # mildly nonlinear: its update is accepted when small (tol) or when the position change
