@@ -2,7 +2,7 @@
 
 numba's on-disk cache is keyed on each function's own source file, not on the files it calls or
 the module constants it bakes in: a cached function in ``env_kernels.py`` would keep old code
-after ``kernels.py`` changed. This module points numba's cache at a folder named after a hash of
+after ``kernels/mesh.py`` changed. This module points numba's cache at a folder named after a hash of
 every file that holds compiled code, so a changed package never meets a stale cache, and so the
 cache works when the package folder is read-only:
 
@@ -20,10 +20,10 @@ import hashlib
 import os
 from pathlib import Path
 
-# files whose njit code is cached (their constants and callees included)
+# files (glob patterns) whose njit code is cached (their constants and callees included)
 _SOURCES = (
     "params.py",
-    "kernels.py",
+    "kernels/*.py",  # every module of the kernels package
     "batch_kernels.py",
     "env_kernels.py",
     "env_terms.py",
@@ -36,10 +36,9 @@ def source_hash() -> str:
     """Short SHA-256 of the package files that hold compiled code."""
     h = hashlib.sha256()
     here = Path(__file__).parent
-    for name in _SOURCES:
-        p = here / name
-        if p.exists():
-            h.update(name.encode())
+    for pattern in _SOURCES:
+        for p in sorted(here.glob(pattern)):
+            h.update(p.relative_to(here).as_posix().encode())
             h.update(p.read_bytes())
     return h.hexdigest()[:16]
 

@@ -33,7 +33,7 @@ whose row stride is a compile-time constant, so LLVM proves that its rows do not
 vectorises the loops over lanes (whose trip count is the block's lane count, padded to a multiple
 of PAD)."""
 PAD = 4
-N_K = 20  # length of kernels.step_consts
+N_K = K.N_K  # length of kernels.step_consts
 # rows of the block buffer: state (q, v, a), Newton guess, their copies from before the step,
 # step constants, then the rest
 R_S = 0
@@ -53,7 +53,10 @@ N_ROWS = Q_WA + 1
 
 @kernel_inline
 def _lane_k(B, e):
-    """The step constants (``kernels.step_consts``) of lane e."""
+    """The step constants (``kernels.step_consts``, N_K = 20 of them) of lane e, rows R_K, R_K + 1, ...
+
+    Written out: ``to_fixed_tuple`` of the column slice gives the same numbers but stops LLVM from
+    vectorising the lane loop (3x slower in an interleaved A/B run, benchmarks/ab_compare.py)."""
     r = R_K
     return (
         B[r, e], B[r + 1, e], B[r + 2, e], B[r + 3, e], B[r + 4, e], B[r + 5, e], B[r + 6, e], B[r + 7, e],
@@ -102,7 +105,7 @@ def _first_pass(B, TB, nl, m, jj, dphi, dynamic, tol):
         kk = TB[m, 2, e]
         pv, t, mesh = K.newton_start_t(s, g, ce, se, wb, hc, k, dynamic)
         code, a, t, mesh, fin = K.newton_iter_t(pv, g, t, mesh, ce, se, kk, wb, hc, k, dynamic, tol, True, False)
-        ok = code == K.NEWTON_DONE and k[17] == 0.0  # steps with friction: redone by the scalar path
+        ok = code == K.NEWTON_DONE and k[K.K_MU] == 0.0  # steps with friction: redone by the scalar path
         # the pre-step state and guess, for the scalar redo (written out: a loop here over the
         # tuple stops the vectorisation)
         B[R_OLD + 0, e] = s[0]

@@ -21,13 +21,12 @@ from typing import Any
 
 import numpy as np
 
-from . import batch_kernels as BK
 from . import env_kernels as EK
 from . import env_terms as ET
 from . import kernels as K
 from .env_config import GearSpeedConfig
+from .integration import integrate
 from .params import C_FS, GearParams, model_code
-from .simulator import NEWTON_MAX_ITER, NEWTON_TOL
 
 MAX_PERIOD = EK.MAX_PERIOD
 """Longest periodic orbit (in mesh periods) recognised by the periodicity defect."""
@@ -189,33 +188,23 @@ class GearSpeedCore:
             pc, st = self._pc_buf, self._st_buf
             x = self.X[r].copy()
             a = self.A[r].copy()
-            status, _, el = K.integrate_stats(
-                x, a, 0.0, float(w0[0]), float(w1[0]), periods, cfg.steps_per_period, self._C_ro[r],
-                self.code, pc[0], st[0], NEWTON_MAX_ITER, NEWTON_TOL, True,
+            status, _, el, _, _, _ = integrate(
+                x, a, self._C_ro[r], self.code, float(w0[0]), float(w1[0]), periods, cfg.steps_per_period,
+                poincare=pc[0], stats=st[0],
             )  # fmt: skip
             good = status == K.OK and math.isfinite(float(st[0].sum()))
             if good:
                 self.X[r] = x
                 self.A[r] = a
             return pc, st, np.array([good]), np.array([el])
-        pc = np.zeros((m, periods, K.N_PC))
-        st = np.zeros((m, K.N_STATS))
-        status = np.zeros(m, np.int64)
-        elapsed = np.zeros(m)
         X = self.X[rows]
         A = self.A[rows]
         W0 = np.ascontiguousarray(w0, float)
         W1 = np.ascontiguousarray(w1, float)
-        if m >= LANES_MIN:  # SIMD across the rows (same numbers as the scalar batch kernel)
-            BK.integrate_stats_lanes(
-                X, A, W0, W1, periods, cfg.steps_per_period, self.C[rows], self.code, pc, st, status, elapsed,
-                NEWTON_MAX_ITER, NEWTON_TOL,
-            )  # fmt: skip
-        else:
-            K.integrate_stats_batch(
-                X, A, W0, W1, periods, cfg.steps_per_period, self.C[rows], self.codes[rows], pc, st, status,
-                elapsed, NEWTON_MAX_ITER, NEWTON_TOL,
-            )  # fmt: skip
+        # SIMD across the rows from LANES_MIN up (same numbers as the scalar batch kernel)
+        status, _, elapsed, pc, st, _ = integrate(
+            X, A, self.C[rows], self.code, W0, W1, periods, cfg.steps_per_period, simd=m >= LANES_MIN
+        )
         # the kernel flags non-finite or exploding states; a non-finite statistic would mean the same
         ok = (status == K.OK) & np.isfinite(st).all(axis=1)
         self.X[rows[ok]] = X[ok]

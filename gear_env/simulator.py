@@ -20,9 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from . import batch_kernels as BK
 from . import kernels as K
 from .errors import SimulationDivergedError
+from .integration import NEWTON_MAX_ITER as NEWTON_MAX_ITER  # re-exported (older imports)
+from .integration import NEWTON_TOL as NEWTON_TOL
+from .integration import integrate
 from .params import C_E1, C_PHI_E, GearParams, model_code
 
 DEFAULT_STEPS_PER_PERIOD = 192
@@ -32,8 +34,6 @@ chosen by the convergence study in docs/SIMULATOR.md."""
 MAX_NATURAL_STEP = 0.12
 """Largest natural-time step 2 pi / (omega N) of the automatic choice (binds below omega ~ 0.27)."""
 
-NEWTON_MAX_ITER = 12
-NEWTON_TOL = 1e-10
 
 STATE_NAMES = ("X_p", "Y_p", "X_g", "Y_g", "U", "dX_p", "dY_p", "dX_g", "dY_g", "dU")
 
@@ -318,19 +318,14 @@ class GearSimulator:
         w1 = w0 if omega_end is None else check_omega(omega_end, "omega_end")
         x = self.x.copy()
         a = self.a.copy()
-        pc = np.empty((n, K.N_PC))
-        stats = np.empty(K.N_STATS)
-        status, done, s = K.integrate_stats(
-            x, a, 0.0, w0, w1, n, self._steps(w0, w1), self._consts, self.model_code, pc, stats,
-            NEWTON_MAX_ITER, NEWTON_TOL, True,
-        )  # fmt: skip
-        if status != K.OK:
-            self._raise(status, done, w0)
+        r = integrate(x, a, self._consts, self.model_code, w0, w1, n, self._steps(w0, w1))
+        if r.status != K.OK:
+            self._raise(r.status, r.done, w0)
         self.x, self.a = x, a
         self.omega = w1
-        self.time += s
+        self.time += r.elapsed
         self.periods_done += n
-        return IntervalStats(w0, w1, n, s, pc, stats)
+        return IntervalStats(w0, w1, n, r.elapsed, r.poincare, r.stats)
 
     def record(self, periods: int, omega_end: float | None = None) -> Trajectory:
         """Like :meth:`advance` but returns the full time series of the interval."""
@@ -340,16 +335,14 @@ class GearSimulator:
         x = self.x.copy()
         a = self.a.copy()
         nsp = self._steps(w0, w1)
-        out = np.empty((n * nsp + 1, K.N_REC))
-        status, rows, s = K.integrate_record(
-            x, a, 0.0, w0, w1, n, nsp, self._consts, self.model_code, out, NEWTON_MAX_ITER, NEWTON_TOL
-        )
-        if status != K.OK:
-            self._raise(status, (rows - 1) // nsp, w0)
+        r = integrate(x, a, self._consts, self.model_code, w0, w1, n, nsp, record=True)
+        if r.status != K.OK:
+            self._raise(r.status, (r.done - 1) // nsp, w0)
+        out = r.record
         out[:, K.REC_S] += self.time
         self.x, self.a = x, a
         self.omega = w1
-        self.time += s
+        self.time += r.elapsed
         self.periods_done += n
         return Trajectory(
             data=out,
@@ -600,19 +593,13 @@ def simulate_batch(
 
     def run(count: int, periods_before: int, w1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Advance every system by ``count`` periods (omega w -> w1); (poincare, stats, elapsed) or raise."""
-        pc = np.zeros((n, count, K.N_PC))
-        st = np.zeros((n, K.N_STATS))
-        status = np.zeros(n, np.int64)
-        el = np.zeros(n)
-        done = BK.integrate_stats_lanes(
-            X, A, w, w1, count, nsp, C, code, pc, st, status, el, NEWTON_MAX_ITER, NEWTON_TOL
-        )
-        bad = np.flatnonzero(status != K.OK)
+        r = integrate(X, A, C, code, w, w1, count, nsp)
+        bad = np.flatnonzero(r.status != K.OK)
         if bad.size:
             i = int(bad[0])
-            why = _STATUS_TEXT.get(int(status[i]), f"status {status[i]}")
-            raise SimulationDivergedError(periods_before + int(done[i]), f"{why} (system {i} of {n})", float(w[i]))
-        return pc, st, el
+            why = _STATUS_TEXT.get(int(r.status[i]), f"status {r.status[i]}")
+            raise SimulationDivergedError(periods_before + int(r.done[i]), f"{why} (system {i} of {n})", float(w[i]))
+        return r.poincare, r.stats, r.elapsed
 
     if n_tr > 0:
         run(n_tr, 0, w)

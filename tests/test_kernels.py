@@ -103,6 +103,11 @@ def test_newmark_step_satisfies_equation_of_motion_at_step_end(model):
         assert st == K.OK
         ref = rhs(0.0, np.concatenate([x, [phi_b]]), w, k, model)
         assert np.allclose(a, ref[5:10], rtol=1e-9, atol=1e-9), (i, a, ref[5:10])
+        # the Newton residual (kernels.newmark) and the explicit accelerations (kernels.mesh.accel)
+        # state the same equations of motion
+        a_explicit = np.zeros(5)
+        K.accel(x[0:5], x[5:10], ce, se, w, kk, p.consts, code, np.zeros(K.GEO_SIZE), a_explicit)
+        assert np.allclose(a, a_explicit, rtol=1e-11, atol=1e-11), (i, a, a_explicit)
 
 
 def _linear_params(**kw):
@@ -272,3 +277,77 @@ def test_integrate_split_steps_dynamic_model_during_a_ramp():
         wa = wb
     assert splits == st[K.ST_SPLITS]
     assert np.array_equal(x, s[:10]) and np.array_equal(a, s[10:]) and np.array_equal(xo, x)
+
+
+# every name gear_env.kernels had when it was one file (kernels.py, before the split into a package);
+# other modules and branches import them from gear_env.kernels
+_NAMES_BEFORE_SPLIT = """
+BETA C_A0 C_ALPHA0 C_BC C_COS_A0 C_E1 C_EPS_G C_EPS_P C_FS C_GG C_GP C_KAPPA C_MU C_PHI_E C_PHI_K C_R C_SIG_G
+C_SIG_P C_SIN_A0 C_XI_BG C_XI_BP C_XI_M DIVERGED DIVERGENCE_LIMIT DQ_LINEAR FRICTION_SHARPNESS GAMMA GEO_SIZE
+MAX_SPLIT_LEVEL NDOF NEWTON_BAD NEWTON_DONE NEWTON_FAILED NEWTON_MORE NSTATE N_PC N_REC N_STATS OK PC_BD PC_DELTA
+PC_FORCE PC_PSI REC_BD REC_DELTA REC_FORCE REC_OMEGA REC_PHI REC_PSI REC_REGION REC_S ST_BACK_IMPACTS ST_BACK_TIME
+ST_BD_MAX ST_BD_MIN ST_DRIVE_IMPACTS ST_D_MAX ST_D_MIN ST_F_MAX ST_F_MIN ST_F_SQ ST_F_SUM ST_PSI_MAX ST_PSI_MIN
+ST_SEP_TIME ST_SPLITS ST_STEPS ST_TIME ST_TR_MAX ST_TR_SQ ST_U_MAX ST_U_MIN TWO_PI WORK_SIZE _acc_init _acc_step
+_acc_store _diverged_t _excitation_table _integrate_stats_batch _poincare_store_t _record_row_t _stats_init accel
+backlash corrector_t excitation friction_t geometry geometry_t guess_t integrate_record integrate_stats
+integrate_stats_batch integrate_stats_tab kernel kernel_inline load_t mesh_state mesh_t newmark_step newmark_step_t
+newmark_try_t newton_iter_t newton_start_t njit omega_step_t psi_t readonly runtime_int runtime_true split_step_t
+start_step static_equilibrium step_coeffs step_consts store_t
+""".split()
+
+
+def test_kernels_package_keeps_every_name_of_the_single_module():
+    missing = [n for n in _NAMES_BEFORE_SPLIT if not hasattr(K, n)]
+    assert missing == []
+    # the same objects as in the concern modules (one definition each, re-exported)
+    from gear_env.kernels import drivers, layout, mesh, newmark
+
+    assert K.integrate_stats is drivers.integrate_stats and K.backlash is mesh.backlash
+    assert K.newton_iter_t is newmark.newton_iter_t and K.ST_F_MAX == layout.ST_F_MAX
+
+
+def test_named_step_constants_hold_what_their_names_say():
+    p = GearParams(friction=0.1)
+    d = p.dimensionless()
+    k = K.step_consts(p.consts)
+    assert len(k) == K.N_K
+    assert k[K.K_IEP] == 1.0 / d["eps_p"] and k[K.K_IEG] == 1.0 / d["eps_g"]
+    assert k[K.K_C_P] == 2.0 * d["xi_p"] * d["sigma_p"] and k[K.K_K_G] == d["sigma_g"] ** 2
+    assert k[K.K_XIM2] == 2.0 * d["xi_m"] and k[K.K_FS] == d["F_s"] and k[K.K_E1] == d["E1"]
+    assert k[K.K_A0] == d["A0"] and k[K.K_R] == d["R"] and k[K.K_INV_R] == 1.0 / d["R"] and k[K.K_BC] == d["B_c"]
+    assert k[K.K_SIN_A0] == math.sin(p.consts[K.C_ALPHA0]) and k[K.K_MU] == 0.1
+    assert k[K.K_COS_PHI_E] == math.cos(p.consts[K.C_PHI_E])
+
+
+@pytest.mark.parametrize("model", ["constant", "dynamic"])
+def test_linearised_kernel_model_is_linear_py(model):
+    """The compiled model and linear.py state the same equations: the Jacobian of ``K.accel`` at
+    the static equilibrium (kappa = 0, no TE, in contact) is -M^-1 K and -M^-1 C of
+    ``linear.matrices``. For the dynamic model linear.py freezes psi = alpha0, so the comparison
+    uses a vanishing static load (F_s -> 0 removes the F_s dpsi/dq terms it neglects)."""
+    kw = dict(kappa=0.0, e_m1=0.0)
+    if model == "dynamic":
+        kw.update(T_p=22e-3, T_g=30e-3)  # F_s = 2.7e-5 b0: still in contact at the difference step
+    p = _linear_params(**kw) if model == "constant" else GearParams(**kw)
+    code = 0 if model == "constant" else 1
+    c = p.consts
+    x0 = np.zeros(10)
+    K.static_equilibrium(c, code, 0.0, x0)
+    M, C, Kmat = matrices(p, model)
+    ce, se, kk = K.excitation(0.0, c)
+    geo = np.zeros(K.GEO_SIZE)
+
+    def acc(x):
+        a = np.zeros(5)
+        K.accel(x[0:5], x[5:10], ce, se, 1.0, kk, c, code, geo, a)
+        return a
+
+    h = 1e-7
+    jac = np.empty((5, 10))
+    for j in range(10):
+        e = np.zeros(10)
+        e[j] = h
+        jac[:, j] = (acc(x0 + e) - acc(x0 - e)) / (2 * h)
+    Minv = np.linalg.inv(M)
+    np.testing.assert_allclose(jac[:, :5], -Minv @ Kmat, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(jac[:, 5:], -Minv @ C, rtol=1e-5, atol=1e-6)

@@ -34,10 +34,9 @@ import numpy as np
 
 from .. import kernels as K
 from ..errors import SimulationDivergedError
+from ..integration import integrate
 from ..params import GearParams, model_code
 from ..simulator import (
-    NEWTON_MAX_ITER,
-    NEWTON_TOL,
     GearSimulator,
     check_count,
     check_omega,
@@ -124,13 +123,13 @@ class PeriodMap:
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """P^N(x). Raises SimulationDivergedError if the integration fails."""
         y = np.array(x, dtype=float, copy=True)
-        status, done, _ = K.integrate_stats(
-            y, self._a, 0.0, self.omega, self.omega, self.period, self.steps, self._c, self.code, self._pc,
-            self._st, NEWTON_MAX_ITER, NEWTON_TOL, True,
+        r = integrate(
+            y, self._a, self._c, self.code, self.omega, self.omega, self.period, self.steps,
+            poincare=self._pc, stats=self._st,
         )  # fmt: skip
         self.evaluations += 1
-        if status != K.OK:
-            raise SimulationDivergedError(done, f"kernel status {status} in the period map", self.omega)
+        if r.status != K.OK:
+            raise SimulationDivergedError(r.done, f"kernel status {r.status} in the period map", self.omega)
         return y
 
     def jacobian(self, x: np.ndarray, fd_step: float = 1e-6) -> np.ndarray:

@@ -2,7 +2,7 @@
 renormalisation in one compiled call.
 
 Kept in a module of its own so that the Python API (:mod:`gear_env.analysis.lyapunov`) holds no
-compiled code. The on-disk cache is keyed on a hash of this file and of kernels.py
+compiled code. The on-disk cache is keyed on a hash of this file and of the kernels package
 (:mod:`gear_env._numba_cache`), so a change of the Newmark kernels never meets a stale copy.
 """
 

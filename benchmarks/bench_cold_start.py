@@ -1,0 +1,112 @@
+"""Cold start: seconds of numba compile before the first results, from an empty cache.
+
+Each measurement is a fresh subprocess with an empty ``NUMBA_CACHE_DIR`` (a new temporary folder):
+
+* ``env``: ``gym.make("GearSpeed-v0")``, ``reset()`` and one ``step`` (what a new user waits for);
+* ``sim``: ``GearSimulator(...).advance(2)`` and ``simulate(...)`` for both backlash models.
+
+With ``--ref REF`` the same is measured, interleaved (A B B A ...), on the ``gear_env`` of another
+git ref exported to a temporary folder, and the ratio B/A printed. Compiling is CPU-bound: the
+figures depend on the machine and on its load, printed with them.
+
+    python benchmarks/bench_cold_start.py [--rounds 1] [--ref main] [--only env sim]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+_CHILDREN = {
+    "env": r"""
+import time
+t0 = time.perf_counter()
+import gymnasium as gym
+import gear_env
+t1 = time.perf_counter()
+e = gym.make("GearSpeed-v0")
+e.reset(seed=0)
+e.step(e.action_space.sample())
+t2 = time.perf_counter()
+print(f"{t1 - t0:.3f} {t2 - t1:.3f}")
+""",
+    "sim": r"""
+import time
+t0 = time.perf_counter()
+from gear_env import GearSimulator, simulate
+t1 = time.perf_counter()
+for m in ("constant", "dynamic"):
+    GearSimulator(model=m, omega=1.2).advance(2)
+    simulate(1.2, m, periods=1, transient=0)
+t2 = time.perf_counter()
+print(f"{t1 - t0:.3f} {t2 - t1:.3f}")
+""",
+}
+
+
+def cold(tree: Path, what: str, cwd: Path) -> tuple[float, float]:
+    """(import seconds, first-call seconds) of child ``what`` on the package in ``tree``, empty cache."""
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(tree))
+        out = subprocess.run(
+            [sys.executable, "-c", _CHILDREN[what]], env=env, cwd=cwd, capture_output=True, text=True, check=False
+        )
+    if out.returncode != 0:
+        raise SystemExit(f"{what} on {tree} failed:\n{out.stderr[-3000:]}")
+    a, b = out.stdout.split()[-2:]
+    return float(a), float(b)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rounds", type=int, default=1, help="measurements per tree and child (default 1)")
+    ap.add_argument("--ref", default=None, help="also measure this git ref's gear_env (A), interleaved")
+    ap.add_argument("--only", nargs="+", choices=sorted(_CHILDREN), default=["env", "sim"])
+    ap.add_argument("--tree", default=str(ROOT), help="folder holding the gear_env to measure (default: this tree)")
+    args = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        cwd = Path(tmp) / "cwd"  # no gear_env in the children's working folder
+        cwd.mkdir()
+        trees = {"B": Path(args.tree)}
+        if args.ref:
+            tree_a = Path(tmp) / "a"
+            tree_a.mkdir()
+            arch = subprocess.run(
+                ["git", "-C", str(ROOT), "archive", args.ref, "gear_env"], capture_output=True, check=True
+            )
+            subprocess.run(["tar", "-x", "-C", str(tree_a)], input=arch.stdout, check=True)
+            trees = {"A": tree_a, "B": Path(args.tree)}
+        print(f"trees: {', '.join(f'{k} = {v}' for k, v in trees.items())}; {os.cpu_count()} CPUs")
+        res: dict[tuple[str, str], list[float]] = {}
+        for r in range(args.rounds):
+            order = sorted(trees) if r % 2 == 0 else sorted(trees, reverse=True)
+            for what in args.only:
+                for side in order:
+                    load = os.getloadavg()[0]
+                    t = time.perf_counter()
+                    imp, first = cold(trees[side], what, cwd)
+                    wall = time.perf_counter() - t
+                    res.setdefault((side, what), []).append(first)
+                    print(
+                        f"{side} {what:3s}: import {imp:5.2f} s, first call (compile) {first:6.1f} s, "
+                        f"process {wall:6.1f} s, load {load:.1f}",
+                        flush=True,
+                    )
+        for what in args.only:
+            line = ", ".join(f"{s} {min(res[(s, what)]):.1f} s" for s in sorted(trees))
+            ratio = ""
+            if "A" in trees:
+                ratio = f"  (B/A {min(res[('B', what)]) / min(res[('A', what)]):.3f})"
+            print(f"{what}: best first-call compile {line}{ratio}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,139 @@
+"""The one Python-side way into the integration kernels.
+
+Every caller that advances the gear model (the simulator, ``simulate_batch``, the environment
+core, the Floquet period map) goes through :func:`integrate`: it checks nothing the caller has
+not already validated, allocates the output arrays it is not given, passes the constants
+read-only (one compiled copy of each kernel, see :func:`gear_env.kernels.readonly`), picks the
+kernel for the shape of the input and fills in the Newton settings:
+
+==============================  =====================================================
+input                            kernel
+==============================  =====================================================
+one state, ``record=True``       :func:`gear_env.kernels.integrate_record`
+one state                        :func:`gear_env.kernels.integrate_stats`
+a batch, ``simd=True``           :func:`gear_env.batch_kernels.integrate_stats_lanes`
+a batch, ``simd=False``          :func:`gear_env.kernels.integrate_stats_batch`
+==============================  =====================================================
+
+All four give the same numbers bit for bit. Kernels that call the integrators from compiled code
+(the Lyapunov pair kernel, the environment's kernels) call them directly.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from . import batch_kernels as BK
+from . import kernels as K
+
+NEWTON_MAX_ITER = 12
+"""Newton iterations per Newmark step before the step is split."""
+NEWTON_TOL = 1e-10
+"""Relative tolerance of a Newton update of the dynamic model (see ``kernels.newton_iter_t``)."""
+
+
+class IntervalRun(NamedTuple):
+    """Result of :func:`integrate`. For one state the counts are numbers, for a batch arrays (n,).
+
+    Attributes:
+        status: kernel status (``kernels.OK``, ``DIVERGED``, ``NEWTON_FAILED``).
+        done: mesh periods completed (stats; None for a batch with ``simd=False``); rows written
+            (``record=True``).
+        elapsed: natural time elapsed (omega_n t).
+        poincare: Poincare samples (periods, N_PC) or (n, periods, N_PC); None with ``record``.
+        stats: interval statistics (N_STATS) or (n, N_STATS); None with ``record``.
+        record: the time series (periods * steps_per_period + 1, N_REC) with ``record=True``.
+    """
+
+    status: Any
+    done: Any
+    elapsed: Any
+    poincare: np.ndarray | None
+    stats: np.ndarray | None
+    record: np.ndarray | None = None
+
+
+def integrate(
+    x: np.ndarray,
+    a: np.ndarray,
+    consts: np.ndarray,
+    dynamic: Any,
+    omega0: Any,
+    omega1: Any,
+    periods: int,
+    steps_per_period: int,
+    *,
+    record: bool = False,
+    poincare: np.ndarray | None = None,
+    stats: np.ndarray | None = None,
+    simd: bool = True,
+    max_iter: int = NEWTON_MAX_ITER,
+    tol: float = NEWTON_TOL,
+) -> IntervalRun:
+    """Advance one system (x of shape (10,)) or a batch (x of shape (n, 10)) in place.
+
+    Every system starts at mesh phase 0 (a Poincare section) and omega goes linearly in time from
+    ``omega0`` to ``omega1`` over ``periods`` mesh periods of ``steps_per_period`` Newmark steps.
+    Arguments are not validated (the public entries do that before calling).
+
+    Args:
+        x: state(s) in b0 units, float64, C order; updated in place (a failed batch row is left
+            in an unspecified state).
+        a: accelerations (5,) or (n, 5), updated in place (the start value is recomputed).
+        consts: ``GearParams.consts`` (one row per system for a batch); passed read-only.
+        dynamic: model code (0 constant, 1 dynamic), the same for every row of a batch.
+        omega0, omega1: meshing frequency Omega/omega_n at the start and the end (numbers for one
+            system, float64 arrays (n,) for a batch).
+        periods: mesh periods (>= 1).
+        steps_per_period: Newmark steps per mesh period.
+        record: one system only: return the full time series instead of statistics.
+        poincare, stats: output arrays to fill (allocated when None); reused buffers save an
+            allocation on the environment's hot path. One system: (periods, N_PC) and (N_STATS);
+            a batch: (n, periods, N_PC) and (n, N_STATS).
+        simd: batch only: step the rows together (``batch_kernels``, one model code) rather
+            than one after the other.
+        max_iter, tol: Newton settings (the defaults are those of every published result).
+
+    Returns:
+        :class:`IntervalRun`.
+    """
+    c = K.readonly(consts)  # one compiled signature whoever calls
+    if x.ndim == 1:
+        if record:
+            out = np.empty((periods * steps_per_period + 1, K.N_REC))
+            status, rows, el = K.integrate_record(
+                x, a, 0.0, omega0, omega1, periods, steps_per_period, c, dynamic, out, max_iter, tol
+            )
+            return IntervalRun(status, rows, el, None, None, out)
+        if poincare is None:
+            poincare = np.empty((periods, K.N_PC))
+        if stats is None:
+            stats = np.empty(K.N_STATS)
+        status, done, el = K.integrate_stats(
+            x, a, 0.0, omega0, omega1, periods, steps_per_period, c, dynamic, poincare, stats, max_iter, tol, True
+        )
+        return IntervalRun(status, done, el, poincare, stats)
+    if record:
+        raise ValueError("record=True takes one state of shape (10,), not a batch")
+    n = x.shape[0]
+    if poincare is None:
+        poincare = np.zeros((n, periods, K.N_PC))
+    if stats is None:
+        stats = np.zeros((n, K.N_STATS))
+    status = np.zeros(n, np.int64)
+    elapsed = np.zeros(n)
+    if simd:
+        done = BK.integrate_stats_lanes(
+            x, a, omega0, omega1, periods, steps_per_period, c, int(dynamic), poincare, stats, status, elapsed,
+            max_iter, tol,
+        )  # fmt: skip
+    else:
+        codes = np.full(n, dynamic, np.int64)
+        K.integrate_stats_batch(
+            x, a, omega0, omega1, periods, steps_per_period, c, codes, poincare, stats, status, elapsed,
+            max_iter, tol,
+        )  # fmt: skip
+        done = None
+    return IntervalRun(status, done, elapsed, poincare, stats)

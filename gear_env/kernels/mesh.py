@@ -1,0 +1,342 @@
+"""The gear-bearing model: mesh geometry, backlash, excitation, friction, mesh force and
+equations of motion (MODEL.md sec. 3b), as inline numba leaf functions plus their array forms.
+
+This is the file to open to change a physics term: the backlash law (:func:`backlash`), the
+geometry of the dynamic model (:func:`geometry_t`, eqs. 5-8), the transmission error and the
+stiffness variation (:func:`excitation`), the mesh deflection and its rate (:func:`deflection_t`),
+the mesh force (:func:`force_t`), the friction extension (:func:`friction_t`), the
+accelerations (:func:`accel`) and the static equilibrium (:func:`static_equilibrium`).
+:func:`mesh_t` gathers the mesh quantities of a state. The Newmark step (``kernels.newmark``:
+the Newton residual, its Jacobian and the Taylor update of the dynamic model) and the SIMD path
+(``gear_env.batch_kernels``) take the deflection, the force and the constants
+(:func:`step_consts`, named by the ``K_*`` indices of ``kernels.layout``) from here. The Newton
+residual writes the bearing and inertia terms of :func:`accel` in residual form,
+``r = a + C v + K q + w F - ext`` with ``w`` the force direction per unit mass; keep the two
+in step (``tests/test_kernels.py`` checks that a converged step satisfies :func:`accel` and the
+reference right-hand side).
+
+``gear_env/reference.py`` states the same equations in readable NumPy (a right-hand side for
+SciPy's ``solve_ivp``), written independently from MODEL.md. ``tests/test_kernels.py`` compares
+the geometry and the accelerations term by term and ``tests/test_verification.py`` whole
+trajectories, so a change made here and not there (or the reverse) fails a test.
+
+Plain arrays and floats in, arrays out; everything dimensionless, in natural time
+s = omega_n t; the state is ``x = [X_p, Y_p, X_g, Y_g, U, X_p', Y_p', X_g', Y_g', U']``
+(b0 units) and the mesh phase ``phi`` advances at ``omega``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..params import (
+    C_A0,
+    C_ALPHA0,
+    C_BC,
+    C_COS_A0,
+    C_E1,
+    C_EPS_G,
+    C_EPS_P,
+    C_FS,
+    C_GG,
+    C_GP,
+    C_KAPPA,
+    C_MU,
+    C_PHI_E,
+    C_PHI_K,
+    C_R,
+    C_SIG_G,
+    C_SIG_P,
+    C_SIN_A0,
+    C_XI_BG,
+    C_XI_BP,
+    C_XI_M,
+)
+from .jit import kernel, kernel_inline
+from .layout import (
+    GEO_SIZE,
+    K_A0,
+    K_BC,
+    K_C_G,
+    K_C_P,
+    K_COS_A0,
+    K_COS_PHI_E,
+    K_E1,
+    K_EXT_G,
+    K_EXT_P,
+    K_FS,
+    K_IEG,
+    K_IEP,
+    K_INV_R,
+    K_K_G,
+    K_K_P,
+    K_MU,
+    K_R,
+    K_SIN_A0,
+    K_SIN_PHI_E,
+    K_XIM2,
+)
+
+
+@kernel_inline
+def step_consts(c):
+    """The constants one Newmark step needs, as a tuple of N_K scalars (kept in registers),
+    indexed by the ``K_*`` names of ``kernels.layout`` (``k[K_XIM2]`` = 2 xi_m, ...), in this order.
+
+    (1/eps_p, 1/eps_g, pinion and gear bearing damping and stiffness (natural time), the weights
+    per unit mass, 2 xi_m, F_s, E1, A0, R, 1/R, B_c, sin and cos alpha0, mu, cos and sin phi_e).
+    """
+    sgp = c[C_SIG_P]
+    sgg = c[C_SIG_G]
+    iep = 1.0 / c[C_EPS_P]
+    ieg = 1.0 / c[C_EPS_G]
+    return (
+        iep,
+        ieg,
+        2.0 * c[C_XI_BP] * sgp,
+        2.0 * c[C_XI_BG] * sgg,
+        sgp * sgp,
+        sgg * sgg,
+        -c[C_GP] * iep,
+        -c[C_GG] * ieg,
+        2.0 * c[C_XI_M],
+        c[C_FS],
+        c[C_E1],
+        c[C_A0],
+        c[C_R],
+        1.0 / c[C_R],
+        c[C_BC],
+        c[C_SIN_A0],
+        c[C_COS_A0],
+        c[C_MU],
+        math.cos(c[C_PHI_E]),
+        math.sin(c[C_PHI_E]),
+    )
+
+
+@kernel_inline
+def excitation(phi, c):
+    """(cos(phi + phi_e), sin(phi + phi_e), 1 + kappa cos(phi + phi_k)) at mesh phase phi."""
+    return math.cos(phi + c[C_PHI_E]), math.sin(phi + c[C_PHI_E]), 1.0 + c[C_KAPPA] * math.cos(phi + c[C_PHI_K])
+
+
+@kernel_inline
+def backlash(delta, bd):
+    """Dead-zone function f(Delta; B_d) (eq. 9) and its region (+1 drive, 0 apart, -1 back)."""
+    if delta >= bd:
+        return delta - bd, 1
+    if delta <= -bd:
+        return delta + bd, -1
+    return 0.0, 0
+
+
+@kernel_inline
+def geometry_t(q0, q1, q2, q3, k):
+    """Dynamic-model geometry (eqs. 5-8) at positions (X_p, Y_p, X_g, Y_g), no trigonometric call.
+
+    Returns (dB/dX_p, dB/dY_p, dpsi/dX_p, dpsi/dY_p, B_d, sin psi, cos psi); the derivatives
+    with respect to (X_g, Y_g) are their negatives and those with respect to U are zero. With
+    ca = R/A_d, sa = sqrt(1 - ca^2) = sqrt(A_d^2 - R^2)/A_d (alpha_d), cz = d1/A_d and
+    z = -d2/A_d (the arcsin term): sin psi = sa cz + ca z and cos psi = ca cz - sa z. Two square
+    roots and one division (divisions and roots are the dearest operations of a step).
+    """
+    A0 = k[K_A0]
+    R = k[K_R]
+    d1 = A0 - q0 + q2
+    d2 = q1 - q3
+    ad2 = d1 * d1 + d2 * d2
+    ad = math.sqrt(ad2)
+    r2 = ad2 - R * R  # A_d^2 sin^2(alpha_d)
+    if r2 < 1e-30 * ad2:
+        r2 = 1e-30 * ad2
+    rs = math.sqrt(r2)  # A_d sin(alpha_d)
+    rd = rs * d1
+    pinv = 1.0 / (ad * rd)  # the one division: 1/A_d = pinv rd, 1/(sa cz) = pinv A_d A_d^2
+    iad = pinv * rd
+    inv = pinv * ad * ad2
+    ca = R * iad
+    sa = rs * iad
+    ta = rs * k[K_INV_R]
+    cz = d1 * iad
+    z = -d2 * iad
+    sp = sa * cz + ca * z
+    cp = ca * cz - sa * z
+    bd = k[K_BC] + (ad - A0) * ta
+    dalpha_dad = ca * iad * cz * inv  # ca / (A_d sa)
+    icz = sa * inv
+    db_dad = ta + (ad - A0) * (1.0 + ta * ta) * dalpha_dad
+    d2a = d2 * iad * iad
+    return (
+        -db_dad * cz,
+        -db_dad * z,
+        -dalpha_dad * cz - d2a,
+        -dalpha_dad * z - (d2a * z + iad) * icz,
+        bd,
+        sp,
+        cp,
+    )
+
+
+@kernel_inline
+def mesh_t(s, ce, se, omega, k, dynamic):
+    """Mesh quantities of a state tuple s = (q0..q4, v0..v4, ...) at one instant.
+
+    Returns (Delta, Delta', B_d, f(Delta), region, sin psi, cos psi, dB/dX_p, dB/dY_p, dpsi/dX_p,
+    dpsi/dY_p).
+    """
+    if dynamic == 0:
+        sp = k[K_SIN_A0]
+        cp = k[K_COS_A0]
+        bd = k[K_BC]
+        db0 = 0.0
+        db1 = 0.0
+        dp0 = 0.0
+        dp1 = 0.0
+    else:
+        db0, db1, dp0, dp1, bd, sp, cp = geometry_t(s[0], s[1], s[2], s[3], k)
+    delta, ddelta = deflection_t(s, sp, cp, dp0, dp1, ce, se, omega, k, dynamic)
+    f, region = backlash(delta, bd)
+    return delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1
+
+
+@kernel_inline
+def deflection_t(s, sp, cp, dp0, dp1, ce, se, omega, k, dynamic):
+    """Mesh deflection Delta along the line of action and its rate Delta' (MODEL.md sec. 3) at a state tuple
+    s = (q0..q4, v0..v4, ...), given sin and cos psi and (dynamic model) dpsi/dX_p, dpsi/dY_p; the
+    dynamic model adds the psi' term psi' (dx cos psi + dy sin psi). Returns (Delta, Delta')."""
+    dx = s[0] - s[2]
+    dy = s[1] - s[3]
+    e1 = k[K_E1]
+    delta = dx * sp - dy * cp + s[4] - e1 * ce
+    ddelta = (s[5] - s[7]) * sp - (s[6] - s[8]) * cp + s[9] + e1 * omega * se
+    if dynamic != 0:
+        psid = dp0 * (s[5] - s[7]) + dp1 * (s[6] - s[8])
+        ddelta += psid * (dx * cp + dy * sp)
+    return delta, ddelta
+
+
+@kernel_inline
+def force_t(ddelta, f, kk, k):
+    """Mesh force Fhat = 2 xi_m Delta' + (1 + kappa cos(phi + phi_k)) f(Delta) (MODEL.md sec. 3, natural
+    time); ``kk`` is the stiffness factor, ``f`` the dead-zone function :func:`backlash`."""
+    return k[K_XIM2] * ddelta + kk * f
+
+
+FRICTION_SHARPNESS = 10.0
+
+
+@kernel_inline
+def friction_t(ce, se, k):
+    """[friction extension, GearParams.friction] mu s(phi), s = tanh(10 sin phi): the tangential
+    (off line-of-action) tooth friction force per unit mesh force. ``ce, se`` = cos, sin(phi + phi_e).
+    The friction force mu s F acts on the pinion along (cos psi, sin psi) and on the gear opposite;
+    its moment on the gears is neglected. Returns 0 when friction is off (the paper's model)."""
+    mu = k[K_MU]
+    if mu == 0.0:
+        return 0.0
+    return mu * math.tanh(FRICTION_SHARPNESS * (se * k[K_COS_PHI_E] - ce * k[K_SIN_PHI_E]))
+
+
+@kernel_inline
+def psi_t(sp, cp, c, dynamic):
+    """Meshing angle psi [rad] from sin and cos psi (alpha0 exactly for the constant model)."""
+    if dynamic == 0:
+        return c[C_ALPHA0]
+    return math.atan2(sp, cp)
+
+
+@kernel
+def geometry(q, c, dynamic, out):
+    """Mesh geometry at positions q = (X_p, Y_p, X_g, Y_g, ...) (eqs. 5-8), array form.
+
+    Writes ``out[0:14] = [psi, B_d, dB/dq (5), dpsi/dq (5), sin psi, cos psi]``. For the constant
+    model psi = alpha0 and B_d = B_c (A8) and the derivative entries are left untouched (the
+    caller keeps them zero); for the dynamic model eqs. (5)-(8) (A9) by :func:`geometry_t`.
+    """
+    if dynamic == 0:
+        out[0] = c[C_ALPHA0]
+        out[1] = c[C_BC]
+        out[12] = c[C_SIN_A0]
+        out[13] = c[C_COS_A0]
+        return
+    db0, db1, dp0, dp1, bd, sp, cp = geometry_t(q[0], q[1], q[2], q[3], step_consts(c))
+    out[0] = math.atan2(sp, cp)
+    out[1] = bd
+    out[2] = db0
+    out[3] = db1
+    out[4] = -db0
+    out[5] = -db1
+    out[6] = 0.0
+    out[7] = dp0
+    out[8] = dp1
+    out[9] = -dp0
+    out[10] = -dp1
+    out[11] = 0.0
+    out[12] = sp
+    out[13] = cp
+
+
+@kernel
+def mesh_state(q, v, ce, se, omega, c, dynamic, geo):
+    """Delta, Delta', B_d, f(Delta), region at one instant (q, v of length 5), array form of
+    :func:`mesh_t`; ``geo`` (>= 14, zero-initialised) receives the geometry (see :func:`geometry`).
+    ``ce, se`` = cos, sin of (phi + phi_e)."""
+    geometry(q, c, dynamic, geo)
+    s = (q[0], q[1], q[2], q[3], q[4], v[0], v[1], v[2], v[3], v[4])
+    delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh_t(s, ce, se, omega, step_consts(c), dynamic)
+    return delta, ddelta, bd, f, region
+
+
+@kernel
+def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
+    """Accelerations a = q'' (natural time) at one instant; returns the mesh force Fhat.
+
+    ``kk`` = 1 + kappa cos(phi + phi_k) is the stiffness factor; psi is left in geo[0].
+    """
+    k = step_consts(c)
+    delta, ddelta, bd, f, region = mesh_state(q, v, ce, se, omega, c, dynamic, geo)
+    F = force_t(ddelta, f, kk, k)
+    sp = geo[12]
+    cp = geo[13]
+    fr = friction_t(ce, se, k)  # [friction extension] 0 unless GearParams.friction > 0
+    a[0] = -(k[K_C_P] * v[0] + k[K_K_P] * q[0] + F * (sp - fr * cp) * k[K_IEP])
+    a[1] = -(k[K_C_P] * v[1] + k[K_K_P] * q[1] - F * (cp + fr * sp) * k[K_IEP]) + k[K_EXT_P]
+    a[2] = -(k[K_C_G] * v[2] + k[K_K_G] * q[2] - F * (sp - fr * cp) * k[K_IEG])
+    a[3] = -(k[K_C_G] * v[3] + k[K_K_G] * q[3] + F * (cp + fr * sp) * k[K_IEG]) + k[K_EXT_G]
+    a[4] = k[K_FS] - F
+    return F
+
+
+@kernel
+def static_equilibrium(c, dynamic, phi0, out):
+    """Drive-side static equilibrium with kappa = 0 and the TE frozen at phase phi0 (A10).
+
+    Writes positions and zero velocities into ``out`` (10). Bearings deflect by the static mesh
+    force F_s along the line of action (and by gravity, if set); U closes Delta = B_d + F_s.
+    """
+    geo = np.zeros(GEO_SIZE)
+    q = np.zeros(5)
+    Fs = c[C_FS]
+    lam_p = c[C_EPS_P] * c[C_SIG_P] ** 2
+    lam_g = c[C_EPS_G] * c[C_SIG_G] ** 2
+    psi = c[C_ALPHA0]
+    bd = c[C_BC]
+    for _it in range(100):
+        sp = math.sin(psi)
+        cp = math.cos(psi)
+        q[0] = -sp * Fs / lam_p
+        q[1] = cp * Fs / lam_p - c[C_GP] / lam_p
+        q[2] = sp * Fs / lam_g
+        q[3] = -cp * Fs / lam_g - c[C_GG] / lam_g
+        trans = (q[0] - q[2]) * sp - (q[1] - q[3]) * cp
+        q[4] = bd + Fs + c[C_E1] * math.cos(phi0 + c[C_PHI_E]) - trans
+        geometry(q, c, dynamic, geo)
+        if abs(geo[0] - psi) < 1e-15 and abs(geo[1] - bd) < 1e-15:
+            break
+        psi = geo[0]
+        bd = geo[1]
+    for i in range(5):
+        out[i] = q[i]
+        out[5 + i] = 0.0

@@ -1,0 +1,358 @@
+"""The Newmark-beta step and its Newton iteration (one step, and the split-step fallback).
+
+Time stepping
+-------------
+Newmark-beta, average acceleration (gamma = 1/2, beta = 1/4), with the step uniform in *mesh
+phase*: a mesh period is always ``n`` steps of ``dphi = 2 pi / n``. Inside a control interval
+omega varies linearly in time from ``w0`` to ``w1``; then omega^2 is linear in phase, so omega is
+known exactly at every step boundary and the step length is ``h = 2 dphi / (w_a + w_b)``.
+Poincare samples (phase = 2 pi k) fall exactly on step boundaries, also while omega ramps.
+
+Each step solves the nonlinear equilibrium at the end of the step for the new acceleration with
+Newton's method. The Newton matrix is diagonal (mass, damping, bearing stiffness) plus one rank-one
+term (the mesh force acts along g and is felt along w = M^-1 g), so it is solved in O(n) with the
+Sherman-Morrison formula. The Jacobian is the exact one for the active contact region (semismooth
+Newton on the piecewise-linear backlash); only the tiny dependence of the force direction on psi
+is frozen within a step.
+
+Contact changes inside a step
+-----------------------------
+The dead-zone force f(Delta) is continuous (and so is the viscous mesh term, A6), so the
+acceleration stays continuous and only its derivative jumps at a contact change. A step that
+contains one therefore keeps an O(h^3) local error, and the global error stays O(h^2) with a
+fixed step (shown by the convergence tests on impacting motion). The contact change is not
+located; the semismooth Newton iteration finds the end-of-step region. If Newton does not converge
+(it can cycle between two regions when the end of the step sits on a kink) the step is split in
+halves, recursively up to 2^6 sub-steps, before a failure is reported.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .jit import kernel, kernel_inline, runtime_int
+from .layout import (
+    BETA,
+    DIVERGENCE_LIMIT,
+    GAMMA,
+    K_C_G,
+    K_C_P,
+    K_EXT_G,
+    K_EXT_P,
+    K_FS,
+    K_IEG,
+    K_IEP,
+    K_K_G,
+    K_K_P,
+    K_XIM2,
+    NDOF,
+    NEWTON_FAILED,
+    NSTATE,
+    OK,
+)
+from .mesh import backlash, deflection_t, excitation, force_t, friction_t, mesh_t, psi_t, step_consts
+
+
+@kernel_inline
+def step_coeffs(h, k):
+    """Newmark coefficients of a step of length h (natural time): (h, beta h^2, gamma h,
+    (1/2 - beta) h^2, (1 - gamma) h, inverse diagonal of the Newton matrix for the pinion and the
+    gear bearings). Loop-invariant while omega is constant."""
+    bh2 = BETA * h * h
+    gh = GAMMA * h
+    d0 = 1.0 + gh * k[K_C_P] + bh2 * k[K_K_P]
+    d2 = 1.0 + gh * k[K_C_G] + bh2 * k[K_K_G]
+    q = 1.0 / (d0 * d2)  # one division for both inverses (recomputed every step of a ramp)
+    return h, bh2, gh, h * h * (0.5 - BETA), h * (1.0 - GAMMA), q * d2, q * d0
+
+
+@kernel_inline
+def corrector_t(p, a0, a1, a2, a3, a4, bh2, gh):
+    """Newmark corrector: (q, v) = predictors p = (q~, v~) + (beta h^2, gamma h) x acceleration."""
+    return (
+        p[0] + bh2 * a0,
+        p[1] + bh2 * a1,
+        p[2] + bh2 * a2,
+        p[3] + bh2 * a3,
+        p[4] + bh2 * a4,
+        p[5] + gh * a0,
+        p[6] + gh * a1,
+        p[7] + gh * a2,
+        p[8] + gh * a3,
+        p[9] + gh * a4,
+    )
+
+
+NEWTON_MORE = 0  # newton_iter_t: iterate again
+NEWTON_DONE = 1  # newton_iter_t: converged, (t, a) is the new state
+NEWTON_BAD = 2  # newton_iter_t: non-finite update
+
+
+@kernel_inline
+def newton_start_t(s, g, ce, se, w_b, hc, k, dynamic):
+    """Predictors and the first corrector of a Newmark step from the state tuple s = (q, v, a)
+    with the guess g of the end-of-step acceleration. Returns (predictors pv = (q~, v~), corrected
+    (q, v) t at g, :func:`mesh_t` at t)."""
+    h, bh2, gh, hh, h1, idd0, idd2 = hc
+    qp0 = s[0] + h * s[5] + hh * s[10]
+    qp1 = s[1] + h * s[6] + hh * s[11]
+    qp2 = s[2] + h * s[7] + hh * s[12]
+    qp3 = s[3] + h * s[8] + hh * s[13]
+    qp4 = s[4] + h * s[9] + hh * s[14]
+    vp0 = s[5] + h1 * s[10]
+    vp1 = s[6] + h1 * s[11]
+    vp2 = s[7] + h1 * s[12]
+    vp3 = s[8] + h1 * s[13]
+    vp4 = s[9] + h1 * s[14]
+    pv = (qp0, qp1, qp2, qp3, qp4, vp0, vp1, vp2, vp3, vp4)
+    t = corrector_t(pv, g[0], g[1], g[2], g[3], g[4], bh2, gh)
+    return pv, t, mesh_t(t, ce, se, w_b, k, dynamic)
+
+
+@kernel_inline
+def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_only=False, friction=True):
+    """One semismooth Newton iteration of a Newmark step (no loop inside, so a batch of them
+    vectorises across systems, see ``batch_kernels``).
+
+    ``a`` is the current iterate of the end-of-step acceleration, ``t`` = corrector at a and
+    ``mesh`` = :func:`mesh_t` at t. Returns (code, a, t, mesh, fin) with code NEWTON_MORE,
+    NEWTON_DONE (then (t, a) is the new state and fin = (F, region, Delta, B_d, sin psi,
+    cos psi) at its end) or NEWTON_BAD (non-finite update). With ``taylor_only`` (dynamic model)
+    an iteration that the Taylor update does not finish returns NEWTON_MORE without evaluating
+    the geometry again (the batch kernel redoes such steps with the scalar path). With
+    ``friction=False`` the friction extension is ignored (no tanh call; the batch kernel redoes
+    the steps of systems with friction).
+    """
+    iep, ieg, xim2, Fs = k[K_IEP], k[K_IEG], k[K_XIM2], k[K_FS]
+    c0, c2, k0, k2, ext1, ext3 = k[K_C_P], k[K_C_G], k[K_K_P], k[K_K_G], k[K_EXT_P], k[K_EXT_G]
+    h, bh2, gh, hh, h1, idd0, idd2 = hc
+    a0, a1, a2, a3, a4 = a
+    delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
+    F = force_t(ddelta, f, kk, k)
+    fr = friction_t(ce, se, k) if friction else 0.0  # [friction extension] tilts the force off the LOA
+    cd = gh * xim2
+    w0 = (sp - fr * cp) * iep
+    w1 = -(cp + fr * sp) * iep
+    w2 = -(sp - fr * cp) * ieg
+    w3 = (cp + fr * sp) * ieg
+    # residual r = a + C v + K q + w F - ext
+    r0 = a0 + c0 * t[5] + k0 * t[0] + w0 * F
+    r1 = a1 + c0 * t[6] + k0 * t[1] + w1 * F - ext1
+    r2 = a2 + c2 * t[7] + k2 * t[2] + w2 * F
+    r3 = a3 + c2 * t[8] + k2 * t[3] + w3 * F - ext3
+    r4 = a4 + F - Fs
+    # u = dF/da = bh2 kk df/dq + gh 2 xi_m g, g = dDelta/dq (force direction frozen)
+    cs = bh2 * kk if region != 0 else 0.0
+    rr = cs * float(region)
+    cg = cd + cs
+    u0 = cg * sp - rr * db0
+    u1 = -cg * cp - rr * db1
+    u2 = -cg * sp + rr * db0
+    u3 = cg * cp + rr * db1
+    u4 = cg
+    # Sherman-Morrison: (D + w u^T) d = -r, D = diag(dd0, dd0, dd2, dd2, 1)
+    y0 = -r0 * idd0
+    y1 = -r1 * idd0
+    y2 = -r2 * idd2
+    y3 = -r3 * idd2
+    y4 = -r4
+    z0 = w0 * idd0
+    z1 = w1 * idd0
+    z2 = w2 * idd2
+    z3 = w3 * idd2
+    fac = (u0 * y0 + u1 * y1 + u2 * y2 + u3 * y3 + u4 * y4) / (1.0 + u0 * z0 + u1 * z1 + u2 * z2 + u3 * z3 + u4)
+    e0 = y0 - fac * z0
+    e1 = y1 - fac * z1
+    e2 = y2 - fac * z2
+    e3 = y3 - fac * z3
+    e4 = y4 - fac
+    a0 += e0
+    a1 += e1
+    a2 += e2
+    a3 += e3
+    a4 += e4
+    an = (a0, a1, a2, a3, a4)
+    dmax = max(abs(e0), abs(e1), abs(e2), abs(e3), abs(e4))
+    if not math.isfinite(dmax):
+        return NEWTON_BAD, an, t, mesh, (F, region, delta, bd, sp, cp)
+    t = corrector_t(pv, a0, a1, a2, a3, a4, bh2, gh)
+    if dynamic != 0 and bh2 * dmax <= DQ_LINEAR:
+        # Final update of the dynamic model: the geometry at the new positions is the
+        # first-order Taylor expansion of eqs. (5)-(8) about the previous iterate (the
+        # remainder, curvature of B_d(q) ~1e-3 per b0 times |dq|^2 <= 1e-8, is below 1e-11),
+        # which saves the square roots and divisions of a second geometry evaluation.
+        dpsi = bh2 * (dp0 * (e0 - e2) + dp1 * (e1 - e3))
+        bd1 = bd + bh2 * (db0 * (e0 - e2) + db1 * (e1 - e3))
+        sp1 = sp + cp * dpsi
+        cp1 = cp - sp * dpsi
+        delta1, ddelta1 = deflection_t(t, sp1, cp1, dp0, dp1, ce, se, w_b, k, dynamic)
+        f1, region1 = backlash(delta1, bd1)
+        if region1 == region:
+            return NEWTON_DONE, an, t, mesh, (force_t(ddelta1, f1, kk, k), region1, delta1, bd1, sp1, cp1)
+    if dynamic != 0 and taylor_only:
+        return NEWTON_MORE, an, t, mesh, (F, region, delta, bd, sp, cp)
+    old_region = region
+    mesh = mesh_t(t, ce, se, w_b, k, dynamic)
+    delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
+    F = force_t(ddelta, f, kk, k)
+    # The backlash force is piecewise linear: for the constant model the update is exact
+    # once the region it assumed is the region it lands in. The dynamic model's geometry is
+    # mildly nonlinear: its update is accepted when small (tol) or when the position change
+    # of the last Newton update, bh2 * dmax, is below DQ_LINEAR, where the neglected
+    # quadratic term (curvature of B_d(q) ~ 1e-3 per b0 times DQ_LINEAR^2) is below 1e-11.
+    if region == old_region and (
+        dynamic == 0
+        or bh2 * dmax <= DQ_LINEAR
+        or dmax <= tol * (1.0 + max(abs(a0), abs(a1), abs(a2), abs(a3), abs(a4)))
+    ):
+        return NEWTON_DONE, an, t, mesh, (F, region, delta, bd, sp, cp)
+    return NEWTON_MORE, an, t, mesh, (F, region, delta, bd, sp, cp)
+
+
+@kernel_inline
+def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
+    """Attempt one Newmark step on the state tuple s = (q (5), v (5), a (5)).
+
+    ``hc`` = :func:`step_coeffs` of the step, ``(ce, se, kk)`` the excitation, ``w_b`` the
+    meshing frequency at its end and ``g`` Newton's starting guess of the end-of-step
+    acceleration. Returns (converged, new state tuple, F, region, Delta, B_d, sin psi, cos psi);
+    on failure the state tuple returned is the input one.
+    """
+    pv, t, mesh = newton_start_t(s, g, ce, se, w_b, hc, k, dynamic)
+    a = (g[0], g[1], g[2], g[3], g[4])
+    fin = (0.0, 0, 0.0, 0.0, 0.0, 0.0)
+    for _it in range(max_iter):
+        code, a, t, mesh, fin = newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol)
+        if code == NEWTON_DONE:
+            s1 = (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], a[0], a[1], a[2], a[3], a[4])
+            return True, s1, fin[0], fin[1], fin[2], fin[3], fin[4], fin[5]
+        if code == NEWTON_BAD:
+            break
+    return False, s, fin[0], fin[1], fin[2], fin[3], fin[4], fin[5]
+
+
+DQ_LINEAR = 1e-4
+"""Dynamic model: a Newton update that moves the positions by less than this (b0) is final."""
+
+MAX_SPLIT_LEVEL = 6
+
+
+@kernel
+def split_step_t(s, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol):
+    """Fallback of :func:`newmark_step_t`: the step divided into 2, 4, ... 2^6 sub-steps (omega^2
+    linear in phase inside it) until Newton converges in every sub-step. Same return as
+    :func:`newmark_step_t`."""
+    F = 0.0
+    region = 0
+    delta = 0.0
+    bd = 0.0
+    sp = 0.0
+    cp = 0.0
+    for level in range(1, MAX_SPLIT_LEVEL + 1):
+        nsub = 1 << level
+        ss = s
+        good = True
+        sub = dphi / nsub
+        wprev = w_a
+        for j in range(nsub):
+            frac = (j + 1.0) / nsub
+            wk = math.sqrt(w_a * w_a + (w_b * w_b - w_a * w_a) * frac)
+            hc = step_coeffs(2.0 * sub / (wprev + wk), k)
+            cek, sek, kkk = excitation(phi_a + sub * (j + 1.0), c)
+            ga = (ss[10], ss[11], ss[12], ss[13], ss[14])
+            ok, ss, F, region, delta, bd, sp, cp = newmark_try_t(
+                ss, ga, cek, sek, kkk, wk, hc, k, dynamic, max_iter, tol
+            )
+            if not ok:
+                good = False
+                break
+            wprev = wk
+        if good:
+            return OK, ss, F, region, delta, bd, sp, cp, 1
+    return NEWTON_FAILED, s, F, region, delta, bd, sp, cp, 1
+
+
+@kernel_inline
+def newmark_step_t(s, g, phi_a, dphi, ce, se, kk, w_a, w_b, hc, c, k, dynamic, max_iter, tol):
+    """Advance the state tuple s = (q, v, a) by a phase increment dphi (omega: w_a -> w_b).
+
+    ``(ce, se, kk)`` is the excitation at the end phase phi_a + dphi and ``hc`` the step
+    coefficients (:func:`step_coeffs` of h = 2 dphi / (w_a + w_b)). Returns (status, new state
+    tuple, F, region, Delta, B_d, sin psi, cos psi, split), split = 1 if Newton needed sub-steps.
+    """
+    ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol)
+    if ok:
+        return OK, s1, F, region, delta, bd, sp, cp, 0
+    # runtime_int: the SIMD kernels pass the model as a literal; the rare fallback is compiled once
+    return split_step_t(s, phi_a, dphi, w_a, w_b, c, k, runtime_int(dynamic), max_iter, tol)
+
+
+@kernel_inline
+def guess_t(s0, s1, last):
+    """Newton's starting guess for the next step's acceleration: linear extrapolation
+    2 a_{n+1} - a_n from the last two steps, or a_{n+1} itself if ``last`` (after a split step,
+    and for the constant model, whose piecewise-linear Newton does not depend on the guess)."""
+    if last:
+        return (s1[10], s1[11], s1[12], s1[13], s1[14])
+    return (
+        2.0 * s1[10] - s0[10],
+        2.0 * s1[11] - s0[11],
+        2.0 * s1[12] - s0[12],
+        2.0 * s1[13] - s0[13],
+        2.0 * s1[14] - s0[14],
+    )
+
+
+@kernel_inline
+def omega_step_t(j, wa, hc, w0, ww, dphi, k):
+    """Meshing frequency at the end of step j of an interval in which omega goes linearly in time
+    from w0 (omega^2 linear in the step index; ``ww`` = (w1^2 - w0^2)/total, its increment per
+    step), and the coefficients of the step from ``wa``: ``hc`` (those of the previous step) is
+    reused while omega is constant. Returns (omega at the end of the step, step coefficients)."""
+    if ww == 0.0:
+        return w0, hc
+    wb = math.sqrt(w0 * w0 + ww * (j + 1.0))
+    return wb, step_coeffs(2.0 * dphi / (wa + wb), k)
+
+
+@kernel_inline
+def load_t(x, a):
+    """State tuple (q, v, a) from the arrays x (10) and a (5)."""
+    return (x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9], a[0], a[1], a[2], a[3], a[4])
+
+
+@kernel_inline
+def store_t(s, x, a):
+    """Write the state tuple back into x (10) and a (5)."""
+    for i in range(NSTATE):
+        x[i] = s[i]
+    for i in range(NDOF):
+        a[i] = s[NSTATE + i]
+
+
+@kernel_inline
+def _diverged_t(s):
+    """True if a state tuple holds a non-finite value or |q|_1 + |v|_1 > DIVERGENCE_LIMIT."""
+    m = abs(s[0]) + abs(s[1]) + abs(s[2]) + abs(s[3]) + abs(s[4])
+    m += abs(s[5]) + abs(s[6]) + abs(s[7]) + abs(s[8]) + abs(s[9])
+    return not (m <= DIVERGENCE_LIMIT)
+
+
+@kernel
+def newmark_step(x, a, phi_a, dphi, ce, se, kk, w_a, w_b, c, dynamic, work, max_iter, tol):
+    """Array form of one step: advance (x, a) in place by a phase increment dphi while omega goes
+    linearly in time w_a -> w_b; ``ce, se, kk`` is the excitation at the end phase.
+
+    Returns (status, F, region, delta, bd, split) with the mesh quantities at the end of the
+    step; psi at the end of the step is written to work[0].
+    """
+    k = step_consts(c)
+    hc = step_coeffs(2.0 * dphi / (w_a + w_b), k)
+    s0 = load_t(x, a)
+    st, s, F, region, delta, bd, sp, cp, split = newmark_step_t(
+        s0, (a[0], a[1], a[2], a[3], a[4]), phi_a, dphi, ce, se, kk, w_a, w_b, hc, c, k, dynamic, max_iter, tol
+    )
+    if st == OK:
+        store_t(s, x, a)
+        work[0] = psi_t(sp, cp, c, dynamic)
+    return st, F, region, delta, bd, split
