@@ -50,9 +50,10 @@ class IntervalRun(NamedTuple):
     status: Any
     done: Any
     elapsed: Any
-    poincare: np.ndarray | None
-    stats: np.ndarray | None
-    record: np.ndarray | None = None
+    # typed Any: which of the three is None depends on ``record`` (documented above)
+    poincare: Any
+    stats: Any
+    record: Any = None
 
 
 def integrate(
