@@ -416,8 +416,8 @@ def train(opts: TrainOptions) -> dict[str, Any]:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Register the training options on ``p`` (shared by train.py and ``gear-env train``)."""
     p.add_argument("--out", required=True, metavar="RUN_DIR", help="run folder to create (or resume)")
-    p.add_argument("--timesteps", type=int, default=700_000, help="total environment steps (default 700000)")
-    p.add_argument("--num-envs", type=int, default=16, help="sub-environments in the vector env (default 16)")
+    p.add_argument("--timesteps", type=int, default=None, help="total environment steps (default 700000)")
+    p.add_argument("--num-envs", type=int, default=None, help="sub-environments in the vector env (default 16)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--resume", action="store_true", help="continue RUN_DIR from its last checkpoint")
     p.add_argument("--overwrite", action="store_true", help="replace an existing run in RUN_DIR")
@@ -428,7 +428,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", choices=["constant", "dynamic"], help="backlash model of the environment")
     p.add_argument("--randomize-params", action="store_true", help="randomise the physics parameters per episode")
     p.add_argument("--demand", metavar="PROFILE", help="demand profile of the environment (name or file)")
-    p.add_argument("--env-id", default=GEAR_ENV_ID, help=argparse.SUPPRESS)
+    p.add_argument(
+        "--env", "--env-id", dest="env_id", default=None, metavar="ID",
+        help="task: GearSpeed-v0 (default), GearSpeed-v1 or GearSpeedDemand-v0",
+    )  # fmt: skip
+    p.add_argument(
+        "--hyperparams", metavar="PPO.yml",
+        help="take the PPO hyper-parameters, n_envs, n_timesteps and env_kwargs of the task from an rl-zoo3 "
+        "file (agents/hyperparams/ppo.yml); explicit options win",
+    )  # fmt: skip
     p.add_argument("--eval-freq", type=int, default=50_000, help="evaluate every N total steps (0 = only at the end)")
     p.add_argument("--eval-episodes", type=int, default=16, help="episodes per evaluation (default 16)")
     p.add_argument("--checkpoint-freq", type=int, default=50_000, help="checkpoint every N total steps (0 = off)")
@@ -490,21 +498,31 @@ def options_from_args(args: argparse.Namespace) -> TrainOptions:
         env_cfg["demand"] = _demand(args.demand)
     env_cfg.update(_kv(args.set, "--set"))
     explicit_env = explicit_env or bool(args.model or args.randomize_params or args.demand or args.set)
-    env_id = args.env_id
+    env_id = args.env_id or GEAR_ENV_ID
+    timesteps, num_envs = args.timesteps, args.num_envs
+    zoo_ppo: dict[str, Any] = {}
+    if getattr(args, "hyperparams", None):
+        from .hyperparams import load_zoo_entry
+
+        zoo = load_zoo_entry(args.hyperparams, env_id)
+        zoo_ppo = zoo["ppo"]
+        env_cfg = {**zoo["env_kwargs"], **env_cfg}
+        timesteps = zoo.get("n_timesteps") if timesteps is None else timesteps
+        num_envs = zoo.get("n_envs") if num_envs is None else num_envs
     if args.resume and not explicit_env:
         # resume with the stored environment unless the user asked for something else
         stored = RunFolder(args.out).read_config()
         env_cfg = dict(stored["env_config"])
         env_id = stored["env_id"]
-    ppo = _kv(args.ppo, "--ppo")
+    ppo = {**zoo_ppo, **_kv(args.ppo, "--ppo")}
     if args.resume:  # stored hyper-parameters, with any explicit --ppo on top (checked for compatibility)
         ppo = {**dict(RunFolder(args.out).read_config().get("ppo", {})), **ppo}
     return TrainOptions(
         out=args.out,
         env_id=env_id,
         env_config=env_cfg,
-        timesteps=args.timesteps,
-        num_envs=args.num_envs,
+        timesteps=700_000 if timesteps is None else int(timesteps),
+        num_envs=16 if num_envs is None else int(num_envs),
         seed=args.seed,
         eval_freq=args.eval_freq,
         eval_episodes=args.eval_episodes,

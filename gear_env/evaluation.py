@@ -97,7 +97,15 @@ def steady_reward_map(
         :class:`SteadyRewardMap`.
     """
     cfg = GearSpeedConfig.from_kwargs(config)
-    cfg = cfg.replace(randomize_params=False, demand=None, action_mode="delta", max_steps=10**6)
+    cfg = cfg.replace(
+        randomize_params=False,
+        demand=None,
+        throughput="all",
+        plant_family=None,
+        duty_cycle=None,
+        action_mode="delta",
+        max_steps=10**6,
+    )
     if omegas is None:
         omegas = np.linspace(cfg.omega_min, cfg.omega_max, 59)
     w = np.asarray(omegas, float).ravel()
@@ -333,6 +341,8 @@ class EvaluationReport:
 def run_episode(env: Any, policy: Any, seed: int | None) -> EpisodeResult:
     """Roll out one episode of ``policy`` (``predict(obs, state, episode_start, deterministic)``)."""
     obs, info = env.reset(seed=seed)
+    if hasattr(policy, "observe_episode"):  # a privileged baseline (the oracle): it is told the scenario
+        policy.observe_episode(env.unwrapped.episode)
     state = None
     start = np.ones((1,), bool)
     omegas: list[float] = []

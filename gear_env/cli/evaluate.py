@@ -26,7 +26,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--episodes", type=int, default=5, help="episodes per policy (default 5)")
     p.add_argument("--seed", type=int, default=0, help="seed of the first episode (default 0)")
-    p.add_argument("--config", metavar="CONFIG.json", help="JSON object of GearSpeed-v0 settings")
+    p.add_argument(
+        "--env", default="GearSpeed-v0", metavar="ID",
+        help="task: GearSpeed-v0 (default), GearSpeed-v1 or GearSpeedDemand-v0 (--config settings override its own)",
+    )  # fmt: skip
+    p.add_argument("--config", metavar="CONFIG.json", help="JSON object of environment settings")
     p.add_argument("--json", metavar="PATH", help="write the results as JSON")
     p.add_argument("--markdown", metavar="PATH", help="write the table as Markdown")
     p.add_argument("--plot", metavar="PATH", help="write a PNG: omega(t) over the regime bands, vibration below")
@@ -38,8 +42,9 @@ def run(args: argparse.Namespace) -> int:
     from ..evaluation import evaluate_policies
     from ..io import atomic_write_text
     from ..schedules import SpeedSchedule
+    from ..tasks import task_config
 
-    cfg = GearSpeedConfig.from_json(args.config) if args.config else GearSpeedConfig()
+    cfg = task_config(args.env, GearSpeedConfig.from_json(args.config).to_dict() if args.config else None)
     if not args.schedule and not args.policy:
         raise ValueError("give at least one --schedule FILE|SPEC or --policy SPEC")
     policies: dict[str, object] = {}
@@ -53,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         except ImportError as exc:
             raise ValueError(f"policy specs need the agents package (agents.registry): {exc}") from None
         for spec in args.policy:
-            policies[spec] = resolve_policy(spec, cfg)
+            policies[spec] = resolve_policy(spec, cfg, env_id=args.env)
     report = evaluate_policies(policies, cfg, episodes=args.episodes, seed=args.seed)
     table = report.to_markdown()
     print(table)
