@@ -173,7 +173,9 @@ def export_run(run_dir: str | Path, env_id: str, out_dir: str | Path, use_best: 
     vn = load_vecnormalize(Path(run_dir) / ("best_vecnormalize.pkl" if use_best else "vecnormalize.pkl"))
     summary = {
         "run": Path(run_dir).name,
-        "seed": cfg.get("options", {}).get("seed", cfg.get("seed")),
+        "trained_as": cfg.get("env_id"),
+        "train": cfg.get("train"),
+        "command": cfg.get("command"),
         "model": stem,
         "ppo": cfg.get("ppo"),
         "metrics": metrics,

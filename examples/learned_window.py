@@ -36,7 +36,7 @@ def quiet_intervals(omegas, terms) -> list[tuple[float, float]]:
     return _intervals(np.asarray(omegas), ok)
 
 
-def learned_window(policy_spec: str = "pretrained", hold: int = 8, levels: np.ndarray | None = None) -> list[dict]:
+def learned_window(policy_spec: str = "pretrained", hold: int = 6, levels: np.ndarray | None = None) -> list[dict]:
     """One curve per plant of PLANTS (see :func:`gear_env.plots.tasks.plot_learned_window`)."""
     from agents.registry import resolve_policy
     from gear_env.env import GearSpeedEnv
@@ -44,13 +44,13 @@ def learned_window(policy_spec: str = "pretrained", hold: int = 8, levels: np.nd
     from gear_env.tasks import task_config
 
     base = task_config("GearSpeedDemand-v0")
-    levels = np.round(np.arange(0.2, 2.81, 0.1), 3) if levels is None else np.asarray(levels, float)
+    levels = np.round(np.arange(0.2, 2.81, 0.2), 3) if levels is None else np.asarray(levels, float)
     pts = []
     for k, d in enumerate(levels):
         pts += [(k * hold, float(d)), ((k + 1) * hold - 1e-6, float(d))]
     T = hold * len(levels)
     curves = []
-    grid = np.round(np.arange(base.omega_min, base.omega_max + 1e-9, 0.025), 4)
+    grid = np.round(np.arange(base.omega_min, base.omega_max + 1e-9, 0.05), 4)
     for label, lf, ef in PLANTS:
         cfg = base.replace(
             plant_family={"load": (lf, lf), "e_m1": (ef, ef)},
@@ -72,7 +72,7 @@ def learned_window(policy_spec: str = "pretrained", hold: int = 8, levels: np.nd
                 break
         delivered = [om[min((k + 1) * hold - 1, len(om) - 1)] for k in range(len(levels))]
         plant = cfg.plant_family.plant(cfg.params, {"load": lf, "e_m1": ef})
-        smap = steady_reward_map(cfg.replace(plant_family=None, demand=None, params=plant), grid)
+        smap = steady_reward_map(cfg.replace(plant_family=None, demand=None, throughput="all", params=plant), grid)
         cost = smap.reward - smap.terms["reward_throughput"]
         thr = np.minimum(grid[None, :], levels[:, None])
         short = np.maximum(0.0, levels[:, None] - grid[None, :])
@@ -92,7 +92,7 @@ def learned_window(policy_spec: str = "pretrained", hold: int = 8, levels: np.nd
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--policy", default="pretrained")
-    ap.add_argument("--hold", type=int, default=8)
+    ap.add_argument("--hold", type=int, default=6)
     ap.add_argument("--plot", default="learned_window.png")
     ap.add_argument("--json")
     args = ap.parse_args()
