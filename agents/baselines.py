@@ -28,6 +28,7 @@ OBS_DEFECT = 5  # log1p(periodicity defect / defect_scale)
 OBS_CONTACT = 7  # contact-loss fraction of the step
 OBS_DRIVE_IMPACTS = 8  # drive-side re-impacts per mesh period
 OBS_BACK_IMPACTS = 9  # back-side impacts per mesh period
+OBS_DEMAND = 10  # demand of the next step, scaled like omega (only with a demand)
 
 
 class ScriptedPolicy(BasePolicy):
@@ -48,6 +49,7 @@ class ScriptedPolicy(BasePolicy):
         self.max_domega = float(cp["max_domega"])
         self.action_mode = str(cp["action_mode"])
         self.max_steps = int(cp["max_steps"])
+        self.has_demand = bool(cp.get("has_demand", False))
 
     # ---- conversions ----------------------------------------------------------------------------
     def omega_from_obs(self, obs: np.ndarray) -> np.ndarray:
@@ -143,7 +145,9 @@ class HillClimber(ScriptedPolicy):
     (in units of the environment's defect_scale), the contact-loss fraction below ``contact_tol``
     and there were no impacts. Clean: raise omega by ``climb`` x max rate, but not above
     ``ceiling - margin`` (the ceiling is the lowest omega at which trouble was seen in this
-    episode). Not clean: remember the ceiling and back off at the full rate. Greedy by design: it
+    episode). Not clean: remember the ceiling and back off at the full rate. With a demand
+    (GearSpeedDemand-v0) it never climbs above the demand, forgets the ceiling when the demand changes
+    and raises it by ``forget`` per clean step, so it re-probes a window that moved. Greedy by design: it
     stays in the first clean window it finds above (or below) its start.
     """
 
@@ -156,15 +160,19 @@ class HillClimber(ScriptedPolicy):
         margin: float | None = None,
         defect_tol: float = 0.5,
         contact_tol: float = 0.02,
+        forget: float | None = None,
     ):
         super().__init__(config)
+        # with a demand the window moves (load changes) and the demand changes: the ceiling is raised
+        # again by `forget` per clean step, so the climber re-probes (none without a demand: v0 as before)
+        self.forget = (0.05 * self.max_domega if self.has_demand else 0.0) if forget is None else float(forget)
         self.climb = float(climb)
         self.margin = 2.0 * self.max_domega if margin is None else float(margin)
         self.defect_obs_tol = float(np.log1p(defect_tol))
         self.contact_tol = float(contact_tol)
 
     def initial_state(self, n: int) -> dict[str, np.ndarray]:
-        return {"t": np.zeros(n, np.int64), "ceiling": np.full(n, np.inf)}
+        return {"t": np.zeros(n, np.int64), "ceiling": np.full(n, np.inf), "demand": np.full(n, np.nan)}
 
     def clean(self, obs: np.ndarray) -> np.ndarray:
         """(n,) bool: the last step showed periodic, contact-free, impact-free motion."""
@@ -178,10 +186,18 @@ class HillClimber(ScriptedPolicy):
     def _targets(self, omega, obs, state):
         ok = self.clean(obs)
         state["t"] = state["t"] + 1
-        ceiling = np.where(ok, state["ceiling"], np.minimum(state["ceiling"], omega))
+        ceiling = state["ceiling"]
+        if self.has_demand:  # a new demand level: probe afresh (the window may have moved meanwhile)
+            d_raw = obs[:, OBS_DEMAND]
+            ceiling = np.where(d_raw != state["demand"], np.inf, ceiling)
+            state["demand"] = d_raw.copy()
+        ceiling = np.where(ok, ceiling + self.forget, np.minimum(ceiling, omega))
         state["ceiling"] = ceiling
         up = np.minimum(omega + self.climb * self.max_domega, ceiling - self.margin)
         hold_or_up = np.maximum(up, np.minimum(omega, ceiling - self.margin))
+        if self.has_demand:  # no faster than the demand; down to it at once
+            d = self.omega_min + 0.5 * (obs[:, OBS_DEMAND] + 1.0) * (self.omega_max - self.omega_min)
+            hold_or_up = np.minimum(hold_or_up, d)
         target = np.where(ok, hold_or_up, omega - self.max_domega)
         return target, state
 

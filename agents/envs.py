@@ -19,6 +19,8 @@ from typing import Any
 import numpy as np
 
 GEAR_ENV_ID = "GearSpeed-v0"
+GEAR_ENV_IDS = ("GearSpeed-v0", "GearSpeed-v1", "GearSpeedDemand-v0")
+"""The registered gear tasks (``gear_env.tasks.TASK_SETTINGS``): one config class, different settings."""
 
 
 # --------------------------------------------------------------------------------------------------
@@ -64,15 +66,17 @@ def _jsonable(obj: Any) -> Any:
 def make_config(env_id: str, cfg: Any = None) -> Any:
     """The config object the environment takes: a ``GearSpeedConfig`` for GearSpeed-v0 (from a
     dict, an existing config or None = defaults), a plain dict for stand-in environments."""
-    if env_id != GEAR_ENV_ID:
+    if env_id not in GEAR_ENV_IDS:
         return dict(cfg or {})
     cls = _config_class()
+    from gear_env.tasks import task_config
+
     if cfg is None:
-        return cls()
+        return task_config(env_id)
     if isinstance(cfg, cls):
         return cfg
     if isinstance(cfg, Mapping):
-        return cls.from_kwargs(dict(cfg))
+        return task_config(env_id, dict(cfg))
     raise TypeError(f"environment config must be a GearSpeedConfig or a dict, got {type(cfg).__name__}")
 
 
@@ -102,7 +106,7 @@ def make_env(env_id: str, cfg: Any = None, **kwargs: Any) -> Any:
 
     import gear_env  # noqa: F401  (registers GearSpeed-v0)
 
-    if env_id == GEAR_ENV_ID:
+    if env_id in GEAR_ENV_IDS:
         from gear_env.env import GearSpeedEnv
 
         return GearSpeedEnv(make_config(env_id, cfg), **kwargs)
@@ -116,7 +120,7 @@ def make_sb3_vec_env(env_id: str, cfg: Any, num_envs: int, seed: int | None) -> 
     step for all sub-environments); for stand-ins it is a ``DummyVecEnv``."""
     if not isinstance(num_envs, int) or num_envs < 1:
         raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-    if env_id == GEAR_ENV_ID:
+    if env_id in GEAR_ENV_IDS:
         venv = _gear_sb3_vec_env(make_config(env_id, cfg), num_envs)
     else:
         from stable_baselines3.common.env_util import make_vec_env
@@ -146,11 +150,13 @@ def control_parameters(cfg: Any) -> dict[str, Any]:
         "max_domega": float(c.max_domega),
         "action_mode": str(c.action_mode),
         "max_steps": int(c.max_steps),
+        "has_demand": c.demand is not None,
     }
 
 
 __all__ = [
     "GEAR_ENV_ID",
+    "GEAR_ENV_IDS",
     "config_to_dict",
     "control_parameters",
     "load_config_file",

@@ -33,6 +33,7 @@ from .policy import BasePolicy
 NAMES = (
     "pretrained",
     "oracle",
+    "fixed-best",
     "constant-best",
     "constant:W",
     "ramp",
@@ -42,9 +43,12 @@ NAMES = (
 )
 
 
-def pretrained_dir() -> Path:
-    """Folder of the shipped pretrained policy (a run folder without checkpoints)."""
-    return Path(str(resources.files("gear_env") / "data" / "pretrained"))
+def pretrained_dir(env_id: str = "GearSpeed-v0") -> Path:
+    """Folder of the policy shipped for ``env_id``: GearSpeed-v0's is a run folder without checkpoints
+    (``data/pretrained``), the others ``policy.json`` + ``policy.pt`` (``data/policies/<env_id>``)."""
+    if env_id == "GearSpeed-v0":
+        return Path(str(resources.files("gear_env") / "data" / "pretrained"))
+    return Path(str(resources.files("gear_env") / "data" / "policies" / env_id))
 
 
 class RandomPolicy(BasePolicy):
@@ -62,6 +66,15 @@ class RandomPolicy(BasePolicy):
     ) -> tuple[np.ndarray, Any]:
         """Random actions (n, 1)."""
         return self.rng.uniform(-1.0, 1.0, size=(len(observations), 1)).astype(np.float32), state
+
+
+def _has_scenario(config: Any) -> bool:
+    """True when episodes draw their plant, load or demand (the oracle then plans per episode)."""
+    return config is not None and (
+        getattr(config, "plant_family", None) is not None
+        or getattr(config, "duty_cycle", None) is not None
+        or getattr(config, "demand", None) == "random"
+    )
 
 
 def _float(text: str, spec: str) -> float:
@@ -84,7 +97,7 @@ def _seed(text: str, spec: str) -> int:
     return v
 
 
-def resolve_policy(spec: str, config: Any = None) -> Any:
+def resolve_policy(spec: str, config: Any = None, env_id: str | None = None) -> Any:
     """The policy named by ``spec`` for the environment ``config`` (GearSpeedConfig, dict or None).
 
     Returns an object with ``predict(observation, state=None, episode_start=None,
@@ -97,8 +110,19 @@ def resolve_policy(spec: str, config: Any = None) -> Any:
     from .baselines import ConstantSpeed, HillClimber, SlowRamp
     from .oracle import OraclePolicy, best_constant_omega
 
+    scenario = _has_scenario(config)
     if s == "oracle":
+        if scenario:
+            from .episode_oracle import EpisodeOracle
+
+            return EpisodeOracle(config)
         return OraclePolicy(config)
+    if s == "fixed-best":
+        if scenario:
+            from .episode_oracle import FixedBest
+
+            return FixedBest(config)
+        return ConstantSpeed(best_constant_omega(config), config, name="fixed-best")
     if s == "constant-best":
         return ConstantSpeed(best_constant_omega(config), config, name="constant-best")
     if s.startswith("constant:"):
@@ -116,6 +140,23 @@ def resolve_policy(spec: str, config: Any = None) -> Any:
         return RandomPolicy(_seed(s.split(":", 1)[1], s) if ":" in s else 0)
     from .trained import load_trained_policy
 
+    if s == "pretrained" and env_id not in (None, "GearSpeed-v0"):
+        from .shipped import load_policy
+
+        d = pretrained_dir(env_id)
+        if not (d / "policy.json").is_file():
+            raise ValueError(f"no pretrained policy is shipped for {env_id!r} ({str(d)!r} has no policy.json)")
+        pol = load_policy(d, name="pretrained")
+        if config is not None:
+            from gear_env.env import GearSpeedEnv
+
+            n_obs = GearSpeedEnv(config).observation_space.shape[0]
+            if n_obs != pol.observation_space.shape[0]:
+                raise ValueError(
+                    f"the pretrained policy of {env_id!r} takes {pol.observation_space.shape[0]} observation "
+                    f"features, this configuration gives {n_obs}"
+                )
+        return pol
     if s == "pretrained":
         d = pretrained_dir()
         if not (d / "model.zip").is_file():

@@ -287,7 +287,7 @@ def load_trained_policy(
         )
     adapter = None
     if env_config is not None:
-        from .envs import GEAR_ENV_ID, make_config, make_env
+        from .envs import GEAR_ENV_IDS, make_config, make_env
 
         env = make_env(cfg["env_id"], env_config)
         try:
@@ -295,8 +295,8 @@ def load_trained_policy(
             check_space_compatible(cfg["action_space"], env.action_space, "action", run_dir)
         finally:
             env.close()
-        if cfg["env_id"] == GEAR_ENV_ID:
-            tr, ev = make_config(GEAR_ENV_ID, cfg["env_config"]), make_config(GEAR_ENV_ID, env_config)
+        if cfg["env_id"] in GEAR_ENV_IDS:
+            tr, ev = make_config(cfg["env_id"], cfg["env_config"]), make_config(cfg["env_id"], env_config)
             if ActionAdapter.needed(tr, ev):
                 adapter = ActionAdapter(tr, ev)
     return TrainedPolicy(model, vecnorm, name=name or Path(run_dir).name, run_config=cfg, action_adapter=adapter)

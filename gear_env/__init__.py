@@ -32,16 +32,22 @@ __all__ = [
 
 
 def _register() -> None:
-    """Register ``GearSpeed-v0`` with Gymnasium (the modules load only on ``gym.make``)."""
+    """Register the tasks of :data:`gear_env.tasks.TASK_SETTINGS` with Gymnasium (``GearSpeed-v0``,
+    ``GearSpeed-v1``, ``GearSpeedDemand-v0``; the env modules load only on ``gym.make``), each with
+    ``max_episode_steps`` = its episode length."""
     import gymnasium as gym
 
-    if "GearSpeed-v0" not in gym.registry:
-        gym.register(
-            id="GearSpeed-v0",
-            entry_point="gear_env.env:GearSpeedEnv",
-            vector_entry_point="gear_env.vector_env:GearSpeedVectorEnv",
-            max_episode_steps=None,
-        )
+    from .tasks import TASK_SETTINGS
+
+    for env_id, settings in TASK_SETTINGS.items():
+        if env_id not in gym.registry:
+            gym.register(
+                id=env_id,
+                entry_point="gear_env.env:GearSpeedEnv",
+                vector_entry_point="gear_env.vector_env:GearSpeedVectorEnv",
+                kwargs=dict(settings),
+                max_episode_steps=int(settings.get("max_steps", 200)),
+            )
 
 
 _register()

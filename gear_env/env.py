@@ -118,9 +118,24 @@ class GearSpeedEnv(gym.Env):
     ``model``, ``periods_per_step``, ``max_domega``, ``action_mode``, ``demand``,
     ``randomize_params``, reward weights). Unknown settings raise ``ValueError``.
 
+    ## Tasks
+
+    One class, three registered tasks (``gear_env.tasks.TASK_SETTINGS``; docs/ENVIRONMENT.md says why):
+    ``GearSpeed-v0`` (the defaults), ``GearSpeed-v1`` (speed-reference actions, 48-period control
+    step, 0.1 per step, 100 steps) and ``GearSpeedDemand-v0`` (as v1, plus a gear pair drawn per
+    episode from a family, a load duty cycle and a random operator demand; throughput paid only up to
+    the demand). ``self.episode`` is the episode's scenario (an oracle may read it; the agent does
+    not see it). ``info["cost"]`` (>= 0) sums the cost terms for safe-RL libraries.
+
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version (delta actions, 24 mesh periods per step, 200 steps). Unchanged by v1,
+      except the new ``info`` keys ``cost`` and ``cost_*`` and its registration with
+      ``max_episode_steps=200``.
+    * v1: the default task made well-posed for stock PPO: ``action_mode="target"`` (a speed reference,
+      approached at the acceleration limit), ``periods_per_step=48`` and ``max_domega=0.1`` (the same
+      acceleration as v0, half the decisions), ``max_steps=100`` (the same physical episode).
+    * GearSpeedDemand-v0: the first version of the demand task.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
@@ -139,6 +154,7 @@ class GearSpeedEnv(gym.Env):
         """Name of each observation entry (the ``OBSERVATIONS`` entries of :mod:`gear_env.env_terms`)."""
         self.obs_names = list(self.observation_names)  # older name, kept
         self._needs_reset = True
+        self._wrapper_truncates = False  # set at reset (see _adopt_time_limit)
         self._history: list[tuple[float, float, float, float]] = []  # (omega, chaos, contact loss, force peak)
         self._renderer: Any = None
 
@@ -152,6 +168,7 @@ class GearSpeedEnv(gym.Env):
         seed = check_seed(seed)  # an np.int64 becomes an int (Gymnasium's seeding takes only int)
         check_options(options, ("omega",))
         super().reset(seed=seed)
+        self._adopt_time_limit()
         self._core.reset_rows(np.array([0]), [self.np_random], options)
         self._needs_reset = False
         info = self._core.info_row(0)
@@ -168,7 +185,7 @@ class GearSpeedEnv(gym.Env):
         reward, terminated, truncated = self._core.step_rows(np.array([0]), a)
         info = self._core.info_row(0)
         self._history.append((info["omega"], info["chaos"], info["contact_loss"], info["force_peak"]))
-        term, trunc = bool(terminated[0]), bool(truncated[0])
+        term, trunc = bool(terminated[0]), bool(truncated[0]) and not self._wrapper_truncates
         if term or trunc:
             self._needs_reset = True
         if self.render_mode == "human":
@@ -203,6 +220,35 @@ class GearSpeedEnv(gym.Env):
     def state(self) -> np.ndarray:
         """Copy of the hidden simulator state (10 values, b0 units)."""
         return self._core.X[0].copy()
+
+    def _adopt_time_limit(self) -> None:
+        """Who truncates: made by ``gym.make`` (registered with ``max_episode_steps``), Gymnasium's
+        ``TimeLimit`` wrapper does, so ``gym.make(ID, max_episode_steps=N)`` ends episodes at N; the
+        env's own ``max_steps`` then only sizes the demand profile and the duty cycle (held at their last
+        values beyond it). An explicit ``max_steps`` keyword keeps truncating at its value; one above the
+        registered limit is refused (the wrapper would cut first): pass ``max_episode_steps`` instead."""
+        self._wrapper_truncates = False
+        spec = self.spec
+        if spec is None or spec.id not in gym.registry:
+            return
+        reg = gym.spec(spec.id)
+        if reg.max_episode_steps is None:
+            return
+        given = (spec.kwargs or {}).get("max_steps")
+        default = (reg.kwargs or {}).get("max_steps", GearSpeedConfig().max_steps)
+        if given is None or given == default:
+            self._wrapper_truncates = True
+        elif given > reg.max_episode_steps:
+            raise ValueError(
+                f"gym.make({spec.id!r}, max_steps={given}) asks for longer episodes than the registered time limit "
+                f"({reg.max_episode_steps} steps): use gym.make({spec.id!r}, max_episode_steps={given})"
+            )
+
+    @property
+    def episode(self) -> Any:
+        """The current episode's scenario (:class:`gear_env.tasks.Episode`: plant, duty cycle, demand);
+        what an oracle may know, never part of the observation."""
+        return self._core.episodes[0]
 
     def __getstate__(self):
         d = self.__dict__.copy()

@@ -74,7 +74,7 @@ class TableConfig:
         out: dict[str, Any] = {}
         for name in self.field_names():
             v = getattr(self, name)
-            if isinstance(v, GearParams):
+            if isinstance(v, GearParams) or hasattr(v, "to_dict"):  # GearParams, PlantFamily, DutyCycle
                 v = v.to_dict()
             elif isinstance(v, tuple):
                 v = [list(p) if isinstance(p, tuple) else p for p in v]
@@ -171,7 +171,7 @@ class GearSpeedConfig(TableConfig):
     def demand_points(self) -> np.ndarray | None:
         """The demand profile as an (m, 2) array of (t in steps, omega), or None."""
         d = self.demand
-        if d is None:
+        if d is None or d == "random":  # "random": drawn per episode (gear_env.tasks.random_demand)
             return None
         T = float(self.max_steps)
         lo, hi = self.omega_min, self.omega_max

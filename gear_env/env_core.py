@@ -27,6 +27,7 @@ from . import kernels as K
 from .env_config import GearSpeedConfig
 from .integration import integrate
 from .params import C_FS, GearParams, model_code
+from .tasks import Episode, random_demand
 
 MAX_PERIOD = EK.MAX_PERIOD
 """Longest periodic orbit (in mesh periods) recognised by the periodicity defect."""
@@ -127,6 +128,15 @@ class GearSpeedCore:
         self._info_cols = None if np.array_equal(info_cols, np.arange(ET.N_INFO)) else info_cols
         self._info_items = tuple(terms.info_keys.items())
         self._demand_pts = cfg.demand_points()
+        # the episode scenario of every row (gear_env.tasks.Episode: plant, duty cycle, demand), and the
+        # demand and load level of every step of it (tables only when they vary)
+        self.episodes: list[Any] = [None] * n
+        self._scenario = cfg.plant_family is not None or cfg.duty_cycle is not None or cfg.demand == "random"
+        self._dem = np.zeros((n, cfg.max_steps + 2) if cfg.demand is not None else (n, 0))
+        if self._demand_pts is not None:
+            t = np.arange(cfg.max_steps + 2, dtype=float)
+            self._dem[:] = np.interp(t, self._demand_pts[:, 0], self._demand_pts[:, 1])
+        self._load = np.ones((n, cfg.max_steps + 1) if cfg.duty_cycle is not None else (n, 0))
         self.X = np.zeros((n, K.NSTATE))
         self.A = np.zeros((n, K.NDOF))
         self.C = np.tile(np.asarray(cfg.params.consts, float), (n, 1))
@@ -211,11 +221,14 @@ class GearSpeedCore:
         self.A[rows[ok]] = A[ok]
         return pc, st, ok, elapsed
 
-    def demand(self, step: np.ndarray) -> np.ndarray:
-        """Required omega at env step index ``step`` (0 when no demand profile is set)."""
-        if self._demand_pts is None:
+    def demand(self, step: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """Required omega at env step index ``step`` of ``rows`` (default 0..m-1; 0 without a demand).
+
+        Beyond the episode's ``max_steps`` the last value holds."""
+        if self.config.demand is None:
             return np.zeros(np.shape(step))
-        return np.interp(np.asarray(step, float), self._demand_pts[:, 0], self._demand_pts[:, 1])
+        st = np.minimum(np.asarray(step, np.int64), self._dem.shape[1] - 1)
+        return self._dem[np.arange(len(st)) if rows is None else rows, st]
 
     # ------------------------------------------------------------------ observation space
     def observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -248,12 +261,12 @@ class GearSpeedCore:
         reward = np.zeros(m)
         terminated = np.zeros(m, np.bool_)
         truncated = np.zeros(m, np.bool_)
-        if self._demand_pts is None:
+        if self.config.demand is None:
             demand = demand_next = self._zeros[:m]
         else:
             steps = self.steps[rows]
-            demand = self.demand(steps)
-            demand_next = demand if is_reset else self.demand(steps + 1)
+            demand = self.demand(steps, rows)
+            demand_next = demand if is_reset else self.demand(steps + 1, rows)
         EK.post_step(
             rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, self.S, self.hist, self.tr_ref, self.fs,
             self.omega_n, self.steps, self.X, self.ACC, self.I, self._reward_cols, self._cost_cols, self.F,
@@ -278,18 +291,16 @@ class GearSpeedCore:
                 forced = math.nan
             if not (math.isfinite(forced) and cfg.omega_min <= forced <= cfg.omega_max):
                 raise ValueError(f"reset option 'omega' must be in [{cfg.omega_min:g}, {cfg.omega_max:g}], got {raw!r}")
+        T = cfg.max_steps
         for j, r in enumerate(rows):
+            # draws from the row's generator, in this order: parameter jitter, plant of the family,
+            # initial omega, duty cycle, demand (v0 draws only the first and the third, as before)
             rng = rngs[j]
-            if cfg.randomize_params:
-                self.C[r] = self._episode_params(rng).consts
-            else:
-                self.C[r] = cfg.params.consts
-            self.fs[r] = self.C[r, C_FS]
-            x0 = np.zeros(K.NSTATE)
-            K.static_equilibrium(self._C_ro[r], self.code, 0.0, x0)
-            self.X[r] = x0
-            self.A[r] = 0.0
-            self.tr_ref[r] = math.sqrt(max(0.5 * float(np.sum(x0[:4] ** 2)), 1e-300))
+            p = self._episode_params(rng) if cfg.randomize_params else cfg.params
+            factors = {"load": 1.0, "e_m1": 1.0}
+            if cfg.plant_family is not None:
+                factors = cfg.plant_family.draw(rng)
+                p = cfg.plant_family.plant(p, factors)
             iw = cfg.initial_omega
             if forced is not None:
                 w_init[j] = forced
@@ -299,6 +310,20 @@ class GearSpeedCore:
                 w_init[j] = rng.uniform(iw[0], iw[1]) if iw[1] > iw[0] else iw[0]
             else:
                 w_init[j] = iw
+            load = None
+            if cfg.duty_cycle is not None:
+                load = cfg.duty_cycle.draw(rng, T)
+                self._load[r, :T] = load
+                self._load[r, T] = load[-1]
+            if cfg.demand == "random":
+                self._dem[r, : T + 1] = random_demand(rng, T, cfg.omega_min, cfg.omega_max, cfg.demand_segment_steps)
+                self._dem[r, T + 1] = self._dem[r, T]
+            if self._scenario or cfg.demand is not None:
+                dem = self._dem[r, : T + 1].copy() if cfg.demand is not None else None
+                self.episodes[r] = Episode(
+                    p, factors, np.ones(T) if load is None else load.copy(), dem, float(w_init[j])
+                )
+            self._set_plant(r, p if load is None else self.episodes[r].params_at(0), equilibrium=True)
         self.omega[rows] = w_init
         self.hist[rows] = 0.0
         pps = cfg.periods_per_step
@@ -313,6 +338,27 @@ class GearSpeedCore:
         ok_all &= ok
         self._post(rows, st, ok_all, elapsed, w_init, w_init, True)
 
+    def _set_plant(self, r: int, p: GearParams, equilibrium: bool = False) -> None:
+        """Row ``r`` simulates the gear pair ``p`` from now on (the features' static references follow
+        its load); ``equilibrium``: also restart it from the static equilibrium (a new episode)."""
+        self.C[r] = p.consts
+        self.fs[r] = self.C[r, C_FS]
+        x0 = np.zeros(K.NSTATE)
+        K.static_equilibrium(self._C_ro[r], self.code, 0.0, x0)
+        if equilibrium:
+            self.X[r] = x0
+            self.A[r] = 0.0
+        self.tr_ref[r] = math.sqrt(max(0.5 * float(np.sum(x0[:4] ** 2)), 1e-300))
+
+    def _apply_duty(self, rows: np.ndarray) -> None:
+        """Change the load of the rows whose duty cycle steps to a new level in the coming step."""
+        if self.config.duty_cycle is None:
+            return
+        T = self.config.max_steps
+        for r, t in zip(rows.tolist(), self.steps[rows].tolist()):
+            if 0 < t < T and self._load[r, t] != self._load[r, t - 1]:
+                self._set_plant(r, self.episodes[r].params_at(t))
+
     def decode(self, rows: np.ndarray, actions: np.ndarray) -> np.ndarray:
         """Omega at the end of the next step for actions in [-1, 1] (rate-limited, clipped)."""
         out = np.empty(len(rows))
@@ -326,6 +372,7 @@ class GearSpeedCore:
         terminated, truncated) arrays (m,). A diverged row keeps its state, omega and observation.
         """
         rows = np.asarray(rows, np.int64)
+        self._apply_duty(rows)
         w0 = self.omega[rows]
         w1 = self.decode(rows, actions)
         pc, st, ok, elapsed = self._integrate(rows, w0, w1, self.config.periods_per_step)

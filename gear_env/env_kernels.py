@@ -144,7 +144,8 @@ def post_step(rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, S, h
             # ------------------------------------------------------------ reward and cost terms:
             # one line per entry of env_terms.REWARDS (I[r, R.<name>]) and env_terms.COSTS (I[r, C.<name>])
             if good:
-                I[r, R.throughput] = S[P.w_throughput] * wmean / hi
+                delivered = min(wmean, demand[j]) if S[P.throughput] != 0.0 else wmean
+                I[r, R.throughput] = S[P.w_throughput] * delivered / hi
                 I[r, R.chaos] = -S[P.w_chaos] * chaos
                 I[r, R.contact] = -S[P.w_contact] * contact
                 I[r, R.impact] = -S[P.w_impact] * (drive + S[P.back_impact_weight] * back) / pps
@@ -152,6 +153,9 @@ def post_step(rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, S, h
                 I[r, R.rate] = -S[P.w_rate] * (dw / S[P.max_domega]) ** 2
                 if has_demand:
                     I[r, R.demand] = -S[P.w_demand] * max(0.0, demand[j] - wmean) / hi
+                I[r, C.nonperiodic] = S[P.w_nonperiodic] * chaos
+                I[r, C.separation] = S[P.w_separation] * contact
+                I[r, C.impacts] = S[P.w_impacts] * (drive + S[P.back_impact_weight] * back) / pps
             else:
                 I[r, R.divergence] = -S[P.divergence_penalty]
             # ------------------------------------------------------------ sums

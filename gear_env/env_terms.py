@@ -227,7 +227,8 @@ MIN_STATIC_MESH_FORCE = 1e-6
 """Smallest static mesh force F_s [k_m0 b0] the env accepts (the default pair has 0.0275)."""
 ACTION_MODES = ("delta", "target")
 OBSERVATION_SETS = ("sensors", "full")
-DEMAND_PRESETS = ("steps", "ramp")
+DEMAND_PRESETS = ("steps", "ramp", "random")
+THROUGHPUT_MODES = ("all", "delivered")
 BACKLASH_MODELS = ("constant", "dynamic")  # params.MODELS (checked by the config)
 
 
@@ -296,6 +297,38 @@ def _demand(label: str, v: Any, cfg: Any) -> Any:
     return tuple(pts)
 
 
+def _demand_segments(label: str, v: Any, cfg: Any) -> tuple[int, int]:
+    from .tasks import int_pair  # lazy: tasks imports params
+
+    owner, name = label.rsplit(".", 1)
+    return int_pair(owner, name, v, 1, 1_000_000)
+
+
+def _plant_family(label: str, v: Any, cfg: Any) -> Any:
+    from .tasks import PlantFamily, from_value
+
+    return from_value(PlantFamily, label, v)
+
+
+def _duty_cycle(label: str, v: Any, cfg: Any) -> Any:
+    """A DutyCycle (or None); with a plant family or a duty cycle, every corner of the family box under
+    every duty level must give valid parameters (refused here, before any training starts)."""
+    from .tasks import DutyCycle, PlantFamily, from_value
+
+    d = from_value(DutyCycle, label, v)
+    if cfg.plant_family is not None or d is not None:
+        fam = cfg.plant_family if cfg.plant_family is not None else PlantFamily(load=(1.0, 1.0), e_m1=(1.0, 1.0))
+        fam.check(cfg.params, d.levels if d is not None else (1.0,), MIN_STATIC_MESH_FORCE)
+    return d
+
+
+def _throughput(label: str, v: Any, cfg: Any) -> str:
+    check_choice(label, v, THROUGHPUT_MODES)
+    if v == "delivered" and cfg.demand is None:
+        raise ValueError(f'{label} "delivered" pays omega up to the demand: it needs a demand (demand is None)')
+    return v
+
+
 def _not_none(v: Any) -> float:
     return 1.0 if v is not None else 0.0
 
@@ -328,8 +361,17 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("initial_omega", None, _initial_omega, "None, number, (lo, hi)",
             "initial omega (None: uniform over the range)"),
     Setting("warmup_periods", 48, integer(0, 100_000), "[0, 1e5]", "mesh periods before the first observation"),
-    Setting("demand", None, _demand, 'None, "steps", "ramp", [(t, omega), ...]',
-            "required omega over the episode (t in env steps, piecewise linear)", kernel=_not_none),
+    Setting("demand", None, _demand, 'None, "steps", "ramp", "random", [(t, omega), ...]',
+            'required omega over the episode (t in env steps, piecewise linear); "random": a new level uniform '
+            "over [omega_min, omega_max] every `demand_segment_steps` steps, drawn per episode", kernel=_not_none),
+    Setting("demand_segment_steps", (10, 30), _demand_segments, "(lo, hi), 1 <= lo <= hi",
+            'steps a level of the "random" demand is held (uniform integers)'),
+    Setting("plant_family", None, _plant_family, "None, `PlantFamily` or dict",
+            "per-episode gear pair: uniform factors on the load torques (`load`) and on e_m1 (`e_m1`), "
+            "see gear_env/tasks.py"),
+    Setting("duty_cycle", None, _duty_cycle, "None, `DutyCycle` or dict",
+            "load duty cycle: the load torques times a level from `levels`, changing every `segment_steps` "
+            "steps (drawn per episode)"),
     # observation
     Setting("observation", "sensors", choice(*OBSERVATION_SETS), '"sensors", "full"', "observation set"),
     Setting("poincare_window", 16, integer(9, 1000), "[9, 1000]", "Poincare samples for the defect"),
@@ -338,7 +380,11 @@ SETTINGS: tuple[Setting, ...] = (
 )  # fmt: skip
 
 REWARDS: tuple[Term, ...] = (
-    Term("throughput", 1.0, "w_throughput * omega_mean / omega_max", "paid for speed (throughput at constant torque)"),
+    Term("throughput", 1.0, "w_throughput * omega_mean / omega_max (delivered: min(omega_mean, demand))",
+         "paid for speed (throughput at constant torque); with `throughput=\"delivered\"` only up to the demand",
+         params=(Setting("throughput", "all", _throughput, '"all", "delivered"',
+                         'what is paid: all of omega, or omega delivered against the demand (needs a demand)',
+                         kernel=lambda v: 1.0 if v == "delivered" else 0.0),)),
     Term("chaos", 1.0, "- w_chaos * c", "non-periodic motion, c = clip(defect / defect_scale, 0, 1)"),
     Term("contact", 0.5, "- w_contact * contact_loss_fraction", "time the teeth were apart or in back contact"),
     Term("impact", 0.2, "- w_impact * (drive re-impacts + back_impact_weight * back impacts) / mesh period",
@@ -353,7 +399,12 @@ REWARDS: tuple[Term, ...] = (
          weight="divergence_penalty", weight_doc="reward of a diverging step: minus this"),
 )  # fmt: skip
 
-COSTS: tuple[Term, ...] = ()
+COSTS: tuple[Term, ...] = (
+    Term("nonperiodic", 1.0, "w_nonperiodic * c", "non-periodic motion (the chaos measure c in [0, 1])"),
+    Term("separation", 1.0, "w_separation * contact_loss_fraction", "tooth separation and back contact"),
+    Term("impacts", 1.0, "w_impacts * (drive re-impacts + back_impact_weight * back impacts) / mesh period",
+         "impacts per mesh period"),
+)  # fmt: skip
 
 INFOS: tuple[Info, ...] = (
     Info("step", int, "steps taken in the episode"),

@@ -20,6 +20,8 @@ from .report import EpisodeResult, EvaluationReport
 def run_episode(env: Any, policy: Any, seed: int | None) -> EpisodeResult:
     """Roll out one episode of ``policy`` (``predict(obs, state, episode_start, deterministic)``)."""
     obs, info = env.reset(seed=seed)
+    if hasattr(policy, "observe_episode"):  # a privileged baseline (the oracle): it is told the scenario
+        policy.observe_episode(env.unwrapped.episode)
     state = None
     start = np.ones((1,), bool)
     omegas: list[float] = []

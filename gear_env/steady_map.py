@@ -91,7 +91,15 @@ def steady_reward_map(
         :class:`SteadyRewardMap`.
     """
     cfg = GearSpeedConfig.from_kwargs(config)
-    cfg = cfg.replace(randomize_params=False, demand=None, action_mode="delta", max_steps=10**6)
+    cfg = cfg.replace(
+        randomize_params=False,
+        demand=None,
+        throughput="all",
+        plant_family=None,
+        duty_cycle=None,
+        action_mode="delta",
+        max_steps=10**6,
+    )
     if omegas is None:
         omegas = np.linspace(cfg.omega_min, cfg.omega_max, 59)
     w = np.asarray(omegas, float).ravel()

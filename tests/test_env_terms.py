@@ -174,14 +174,14 @@ def test_settings_vector_slots():
 
 
 def test_a_term_with_a_cost_is_declared_like_a_reward():
-    """The derived names of a cost term (no GearSpeed-v0 term is a cost; the next tasks add some)."""
+    """The derived names of a cost term (the shipped cost terms belong to every task, v0 included)."""
     c = ET.Term("overspeed", 0.5, "w_overspeed * max(0, omega - 2)", "time above omega = 2")
     assert c.weight_name == "w_overspeed"
     (w,) = c.settings()
     assert w.name == "w_overspeed" and w.default == 0.5 and w.kernel is float
     with pytest.raises(ValueError, match=r"X\.w_overspeed must be in \[0, 1e\+06\]"):
         w.check("X.w_overspeed", -1.0, None)
-    assert V0.cost_keys == () and "cost" not in V0.info_keys
+    assert V0.cost_keys == ("cost_nonperiodic", "cost_separation", "cost_impacts") and "cost" in V0.info_keys
 
 
 def test_unknown_task_and_table_kind_are_refused():

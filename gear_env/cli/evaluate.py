@@ -7,7 +7,10 @@ import json
 import sys
 import time
 
+from ..tasks import TASK_SETTINGS
 from .common import check_outputs, int_range
+
+TASK_IDS = tuple(TASK_SETTINGS)
 
 
 def _policy_names() -> str:
@@ -41,7 +44,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--seed", type=int_range(0, 2**32 - 1), default=0, help="seed of the first episode, 0-4294967295 (default 0)"
     )
-    p.add_argument("--config", metavar="CONFIG.json", help="JSON object of GearSpeed-v0 settings")
+    p.add_argument(
+        "--env",
+        default="GearSpeed-v0",
+        choices=TASK_IDS,
+        metavar="ID",
+        help=f"task: {', '.join(TASK_IDS)} (default GearSpeed-v0; --config settings override its own)",
+    )
+    p.add_argument("--config", metavar="CONFIG.json", help="JSON object of environment settings")
     p.add_argument("--json", metavar="PATH", help="write the results as JSON")
     p.add_argument("--markdown", metavar="PATH", help="write the table as Markdown")
     p.add_argument("--plot", metavar="PATH", help="write a PNG: omega(t) over the regime bands, vibration below")
@@ -57,22 +67,21 @@ def run(args: argparse.Namespace) -> int:
     check_outputs(args, ("json", "markdown", "plot"), ("config", "schedule", "policy"))
     n = len(args.schedule) + len(args.policy)
     print(
-        f"evaluating {n} polic{'y' if n == 1 else 'ies'} x {args.episodes} episode(s) on GearSpeed-v0, "
+        f"evaluating {n} polic{'y' if n == 1 else 'ies'} x {args.episodes} episode(s) on {args.env}, "
         f"seeds {args.seed}..{args.seed + args.episodes - 1} (a fresh numba cache first compiles for about a minute)",
         flush=True,
     )
-    from ..env_config import GearSpeedConfig
     from ..evaluation import evaluate_policies
     from ..io import atomic_write_text, read_json
     from ..schedules import SpeedSchedule
+    from ..tasks import task_config
 
+    data = None
     if args.config:
         data = read_json(args.config, "--config", max_bytes=1024 * 1024)
         if not isinstance(data, dict):
             raise ValueError(f"--config {args.config!r} must hold a JSON object of settings")
-        cfg = GearSpeedConfig.from_kwargs(data)
-    else:
-        cfg = GearSpeedConfig()
+    cfg = task_config(args.env, data)
     policies: dict[str, object] = {}
     for spec in args.schedule:
         s = SpeedSchedule.from_spec(spec, cfg)
@@ -85,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"policy specs need the agents package (agents.registry): {exc}") from None
         for spec in args.policy:
             print(f"  loading policy {spec}", flush=True)
-            policies[spec] = resolve_policy(spec, cfg)
+            policies[spec] = resolve_policy(spec, cfg, env_id=args.env)
     print(f"  rolling out ({time.perf_counter() - t0:.1f} s so far)", flush=True)
     report = evaluate_policies(policies, cfg, episodes=args.episodes, seed=args.seed)
     table = report.to_markdown()

@@ -11,9 +11,11 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
+from ..tasks import TASK_SETTINGS
 from .common import int_range
 
 GEAR_ENV_ID = "GearSpeed-v0"
+GEAR_ENV_IDS = tuple(TASK_SETTINGS)
 MAX_NUM_ENVS = 1024  # the same bound as agents.ppo.MAX_NUM_ENVS (checked again there)
 MAX_TIMESTEPS = 10**12
 DEFAULT_NUM_ENVS = 16
@@ -31,8 +33,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--timesteps",
         type=int_range(1, MAX_TIMESTEPS),
-        default=700_000,
-        help="total environment steps, rounded up to whole rollouts of n_steps x num-envs (default 700000)",
+        default=None,
+        help="total environment steps, rounded up to whole rollouts of n_steps x num-envs (default 700000, "
+        "or n_timesteps of --hyperparams)",
     )
     p.add_argument(
         "--num-envs",
@@ -54,7 +57,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", choices=["constant", "dynamic"], help="backlash model of the environment")
     p.add_argument("--randomize-params", action="store_true", help="randomise the physics parameters per episode")
     p.add_argument("--demand", metavar="PROFILE", help="demand profile of the environment (name or file)")
-    p.add_argument("--env-id", default=GEAR_ENV_ID, help=argparse.SUPPRESS)
+    p.add_argument(
+        "--env",
+        "--env-id",
+        dest="env_id",
+        choices=GEAR_ENV_IDS,
+        default=None,
+        metavar="ID",
+        help=f"task: {', '.join(GEAR_ENV_IDS)} (default {GEAR_ENV_ID})",
+    )
+    p.add_argument(
+        "--hyperparams",
+        metavar="PPO.yml",
+        help="take the PPO hyper-parameters, n_envs, n_timesteps and env_kwargs of the task from an rl-zoo3 "
+        "file (agents/hyperparams/ppo.yml); explicit options win",
+    )
     p.add_argument(
         "--eval-freq",
         type=int_range(0, MAX_TIMESTEPS),
@@ -140,9 +157,19 @@ def options_from_args(args: argparse.Namespace) -> Any:
         env_cfg["demand"] = _demand(args.demand)
     env_cfg.update(_kv(args.set, "--set"))
     explicit_env = bool(args.config or args.model or args.randomize_params or args.demand or args.set)
-    env_id = args.env_id
-    ppo = _kv(args.ppo, "--ppo")
-    num_envs = args.num_envs if args.num_envs is not None else DEFAULT_NUM_ENVS
+    env_id = args.env_id or GEAR_ENV_ID
+    timesteps, num_envs_arg = args.timesteps, args.num_envs
+    zoo_ppo: dict[str, Any] = {}
+    if getattr(args, "hyperparams", None):
+        from agents.hyperparams import load_zoo_entry
+
+        zoo = load_zoo_entry(args.hyperparams, env_id)
+        zoo_ppo = zoo["ppo"]
+        env_cfg = {**zoo["env_kwargs"], **env_cfg}
+        timesteps = zoo.get("n_timesteps") if timesteps is None else timesteps
+        num_envs_arg = zoo.get("n_envs") if num_envs_arg is None else num_envs_arg
+    ppo = {**zoo_ppo, **_kv(args.ppo, "--ppo")}
+    num_envs = int(num_envs_arg) if num_envs_arg is not None else DEFAULT_NUM_ENVS
     if args.resume:
         stored = RunFolder(args.out).read_config()
         if args.num_envs is None:  # continue with the stored number of sub-environments
@@ -154,7 +181,7 @@ def options_from_args(args: argparse.Namespace) -> Any:
         out=args.out,
         env_id=env_id,
         env_config=env_cfg,
-        timesteps=args.timesteps,
+        timesteps=700_000 if timesteps is None else int(timesteps),
         num_envs=num_envs,
         seed=args.seed,
         eval_freq=args.eval_freq,

@@ -1,0 +1,71 @@
+"""Read rl-zoo3 hyper-parameter files (``agents/hyperparams/ppo.yml``) for ``gear-env train --hyperparams``.
+
+The format is rl-baselines3-zoo's: one entry per Gymnasium id with SB3 PPO keyword names plus the
+zoo's own keys ``n_envs``, ``n_timesteps``, ``normalize``, ``policy``, ``policy_kwargs`` (a Python
+expression ``dict(...)``, read here without evaluating code: only literal values are accepted) and
+``env_kwargs``. YAML anchors and merge keys (``<<: *base``) work (``yaml.safe_load``).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+from typing import Any
+
+ZOO_ONLY = ("n_envs", "n_timesteps", "normalize", "policy", "policy_kwargs", "env_kwargs")
+"""rl-zoo3 keys that are not PPO keywords."""
+
+
+def _policy_kwargs(text: Any, where: str) -> dict[str, Any]:
+    if isinstance(text, dict):
+        return dict(text)
+    try:
+        node = ast.parse(str(text), mode="eval").body
+        if not (
+            isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict" and not node.args
+        ):
+            raise ValueError
+        return {kw.arg: ast.literal_eval(kw.value) for kw in node.keywords if kw.arg}
+    except (SyntaxError, ValueError):
+        raise ValueError(f"{where}: policy_kwargs must be dict(key=literal, ...), got {text!r}") from None
+
+
+def load_zoo_entry(path: str | Path, env_id: str) -> dict[str, Any]:
+    """The entry of ``env_id`` as {"ppo": {...PPO_DEFAULTS keys}, "env_kwargs", "n_envs", "n_timesteps"}."""
+    import yaml
+
+    from .ppo import PPO_DEFAULTS
+
+    p = Path(path)
+    try:
+        data = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as exc:
+        raise ValueError(f"--hyperparams: cannot read {str(p)!r}: {exc}") from None
+    if not isinstance(data, dict) or env_id not in data or not isinstance(data[env_id], dict):
+        have = sorted(data) if isinstance(data, dict) else []
+        raise ValueError(f"--hyperparams: {str(p)!r} has no entry for {env_id!r} (entries: {have})")
+    entry = dict(data[env_id])
+    where = f"{p}:{env_id}"
+    if entry.get("policy", "MlpPolicy") != "MlpPolicy" or entry.get("normalize", True) is not True:
+        raise ValueError(
+            f"{where}: gear-env train runs MlpPolicy with VecNormalize (policy: MlpPolicy, normalize: true)"
+        )
+    ppo = {k: v for k, v in entry.items() if k not in ZOO_ONLY}
+    ppo.update(_policy_kwargs(entry.get("policy_kwargs", "dict()"), where))
+    unknown = sorted(set(ppo) - set(PPO_DEFAULTS))
+    if unknown:
+        raise ValueError(f"{where}: unknown PPO hyper-parameter(s) {unknown}; valid: {sorted(PPO_DEFAULTS)}")
+    env_kwargs = entry.get("env_kwargs") or {}
+    if not isinstance(env_kwargs, dict):
+        raise ValueError(f"{where}: env_kwargs must be a mapping of environment settings")
+    out: dict[str, Any] = {"ppo": ppo, "env_kwargs": dict(env_kwargs)}
+    for k in ("n_envs", "n_timesteps"):
+        if k in entry:
+            v = entry[k]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or v < 1 or v != int(v):
+                raise ValueError(f"{where}: {k} must be a positive integer, got {v!r}")
+            out[k] = int(v)
+    return out
+
+
+__all__ = ["load_zoo_entry"]

@@ -1,0 +1,93 @@
+"""Speed of each registered task: env steps per second, single env and vector env (8 sub-envs).
+
+Run:  taskset -c 0 python benchmarks/bench_tasks.py [--seconds 3]
+
+Same method as benchmarks/bench_env.py (whose helpers it uses): random actions (seeded), auto-reset
+included, compile time excluded (a warm-up runs first), rates per second of this process's CPU time,
+all tasks timed in this one run, interleaved (task A, B, C, then again), so the ratios between tasks
+are taken under the same machine state. A GearSpeed-v1 / GearSpeedDemand-v0 step is 48 mesh
+periods (v0: 24), so per mesh period they cost the same; the Demand task adds the per-episode draw
+of the plant and the load changes of the duty cycle.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+
+import numpy as np
+
+
+def bench_task(env_id: str, seconds: float, vector: int = 0) -> float:
+    """Env steps per CPU second of ``env_id`` (``vector`` sub-envs in the vector env, 0: single env)."""
+    from bench_env import _timed  # benchmarks/ is the script's folder
+
+    from gear_env.tasks import task_config
+
+    cfg = task_config(env_id)
+    if vector:
+        from gear_env.vector_env import GearSpeedVectorEnv
+
+        venv = GearSpeedVectorEnv(vector, cfg)
+        venv.reset(seed=0)
+        acts = np.random.default_rng(0).uniform(-1, 1, (64, vector, 1)).astype(np.float32)
+        k = [0]
+
+        def step():
+            venv.step(acts[k[0] % 64])
+            k[0] += 1
+
+        for _ in range(3):
+            step()
+        n, dt = _timed(step, seconds)
+        return n * vector / dt
+    from gear_env.env import GearSpeedEnv
+
+    env = GearSpeedEnv(cfg)
+    env.reset(seed=0)
+    acts = np.random.default_rng(0).uniform(-1, 1, (4096, 1)).astype(np.float32)
+    k = [0]
+
+    def step1():
+        _, _, te, tr, _ = env.step(acts[k[0] % 4096])
+        k[0] += 1
+        if te or tr:
+            env.reset()
+
+    for _ in range(5):
+        step1()
+    n, dt = _timed(step1, seconds)
+    return n / dt
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=3.0, help="CPU seconds per measurement")
+    ap.add_argument("--rounds", type=int, default=2, help="interleaved rounds")
+    args = ap.parse_args()
+    from gear_env.tasks import TASK_SETTINGS, task_config
+
+    print(f"{platform.processor() or platform.machine()}, load average {os.getloadavg()}")
+    rates: dict[tuple[str, int], list[float]] = {}
+    for _ in range(args.rounds):
+        for env_id in TASK_SETTINGS:
+            for vec in (0, 8):
+                rates.setdefault((env_id, vec), []).append(bench_task(env_id, args.seconds, vec))
+    print(
+        "| task | periods/step | single env (steps/s) | vector env, 8 sub-envs (env-steps/s) | vector, mesh periods/s |"
+    )
+    print("|---|---:|---:|---:|---:|")
+    for env_id in TASK_SETTINGS:
+        pps = task_config(env_id).periods_per_step
+        s, v = rates[(env_id, 0)], rates[(env_id, 8)]
+        print(
+            f"| {env_id} | {pps} | {min(s):,.0f}-{max(s):,.0f} | {min(v):,.0f}-{max(v):,.0f} | "
+            f"{pps * min(v):,.0f}-{pps * max(v):,.0f} |"
+        )
+    print(f"load average after: {os.getloadavg()}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,139 @@
+"""Stock stable-baselines3 PPO, as a new user would run it, on a GearSpeed task; scored against the oracle.
+
+Run:  python benchmarks/stock_ppo.py --env GearSpeed-v1 --seeds 0 1 [--timesteps 200000] [--json out.json]
+
+What "stock" means here: ``PPO("MlpPolicy", venv)`` with every hyper-parameter at SB3's default,
+``venv = VecNormalize(make_vec_env(ENV_ID, n_envs=8, seed=seed))``, 200k steps, one torch thread,
+no project helper. After training, the deterministic policy (VecNormalize statistics frozen) runs the
+evaluation episodes (seeds 100-119 by default, never used in training: training seeds the sub-envs
+with seed, seed + 1, ...), and so do the oracle and the fixed-best schedule, through
+``gear_env.evaluation.evaluate_policies``. Printed: each run's return as % of the oracle, the
+interquartile mean over runs x episodes of the oracle-normalised return and its 95 % bootstrap
+confidence interval (rliable's method: resample runs, then episodes), and the wall time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+
+def iqm(x: np.ndarray) -> float:
+    """Interquartile mean: the mean of the middle 50 % of the values (rliable's IQM)."""
+    a = np.sort(np.asarray(x, float).ravel())
+    n = len(a)
+    lo, hi = int(np.floor(0.25 * n)), int(np.ceil(0.75 * n))
+    return float(a[lo:hi].mean()) if hi > lo else float(a.mean())
+
+
+def iqm_ci(scores: np.ndarray, reps: int = 2000, seed: int = 0) -> tuple[float, float, float]:
+    """IQM of a (runs, episodes) score matrix and its 95 % stratified-bootstrap interval."""
+    s = np.asarray(scores, float)
+    rng = np.random.default_rng(seed)
+    stats = []
+    for _ in range(reps):
+        runs = s[rng.integers(0, s.shape[0], s.shape[0])]
+        eps = np.take_along_axis(runs, rng.integers(0, s.shape[1], runs.shape), axis=1)
+        stats.append(iqm(eps))
+    return iqm(s), float(np.percentile(stats, 2.5)), float(np.percentile(stats, 97.5))
+
+
+class _Frozen:
+    """A trained SB3 model + frozen VecNormalize as a policy with the common ``predict``."""
+
+    def __init__(self, model, venv, name="stock-ppo"):
+        self.model, self.venv, self.name = model, venv, name
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        obs = self.venv.normalize_obs(np.asarray(observation, np.float32))
+        return self.model.predict(obs, state=state, episode_start=episode_start, deterministic=deterministic)
+
+
+def train_stock(env_id: str, seed: int, timesteps: int):
+    """Train stock PPO (SB3 defaults, 8 envs via make_vec_env, VecNormalize); returns (policy, wall s)."""
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    import gear_env  # noqa: F401  (registers the tasks)
+
+    torch.set_num_threads(1)
+    t0 = time.perf_counter()
+    venv = VecNormalize(make_vec_env(env_id, n_envs=8, seed=seed))
+    model = PPO("MlpPolicy", venv, seed=seed, device="cpu")
+    model.learn(timesteps)
+    venv.training = False
+    venv.norm_reward = False
+    return _Frozen(model, venv), time.perf_counter() - t0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--env", default="GearSpeed-v1")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    ap.add_argument("--timesteps", type=int, default=200_000)
+    ap.add_argument("--eval-seed", type=int, default=100)
+    ap.add_argument("--episodes", type=int, default=20)
+    ap.add_argument("--json", metavar="PATH")
+    args = ap.parse_args(argv)
+
+    from agents.registry import resolve_policy
+    from gear_env.evaluation import evaluate_policies
+    from gear_env.tasks import task_config
+
+    cfg = task_config(args.env)
+    base = evaluate_policies(
+        {"oracle": resolve_policy("oracle", cfg), "fixed-best": resolve_policy("fixed-best", cfg)},
+        cfg,
+        episodes=args.episodes,
+        seed=args.eval_seed,
+    )
+    oracle = np.array([e.ret for e in base.episodes["oracle"]])
+    fixed = np.array([e.ret for e in base.episodes["fixed-best"]])
+    out = {
+        "env": args.env,
+        "timesteps": args.timesteps,
+        "oracle_mean": float(oracle.mean()),
+        "fixed_best_mean": float(fixed.mean()),
+        "runs": [],
+    }
+    print(
+        f"{args.env}: oracle {oracle.mean():.2f}, fixed-best {fixed.mean():.2f} "
+        f"({100 * fixed.mean() / oracle.mean():.1f} %) on seeds {args.eval_seed}-{args.eval_seed + args.episodes - 1}"
+    )
+    scores = []
+    for s in args.seeds:
+        pol, wall = train_stock(args.env, s, args.timesteps)
+        rep = evaluate_policies({"stock": pol}, cfg, episodes=args.episodes, seed=args.eval_seed)
+        r = np.array([e.ret for e in rep.episodes["stock"]])
+        scores.append(r / oracle.mean())
+        out["runs"].append(
+            {
+                "seed": s,
+                "wall_s": wall,
+                "returns": r.tolist(),
+                "pct_of_oracle": 100 * r.mean() / oracle.mean(),
+                "settled_omega": [e.settled_omega for e in rep.episodes["stock"]],
+            }
+        )
+        print(f"seed {s}: {r.mean():.2f} = {100 * r.mean() / oracle.mean():.1f} % of the oracle, {wall:.0f} s wall")
+    m, lo, hi = iqm_ci(np.array(scores))
+    out["iqm_pct"], out["iqm_ci95_pct"] = 100 * m, [100 * lo, 100 * hi]
+    print(
+        f"IQM {100 * m:.1f} % of the oracle, 95 % bootstrap CI [{100 * lo:.1f}, {100 * hi:.1f}] "
+        f"over {len(args.seeds)} runs"
+    )
+    if args.json:
+        from gear_env.io import atomic_write_text
+
+        atomic_write_text(args.json, json.dumps(out, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,249 @@
+"""Per-episode scenarios of the speed-scheduling tasks: a plant family, a load duty cycle, a demand.
+
+``GearSpeedDemand-v0`` draws, at every reset and from the environment's own ``np_random``:
+
+1. a gear pair from a :class:`PlantFamily` (factors on the nominal :class:`~gear_env.params.GearParams`:
+   the load torque and the transmission-error amplitude ``e_m1``);
+2. a load duty cycle from a :class:`DutyCycle` (the load torque is multiplied by a level that changes
+   at random times during the episode);
+3. an operator demand (a piecewise-constant required omega, a new level uniform over
+   [omega_min, omega_max] every few steps).
+
+The result is an :class:`Episode`: what the environment simulates and what an oracle may know, never
+what the agent observes. Units: torques in N m, ``e_m1`` in m (factors are dimensionless), time in
+environment steps, omega = Omega/omega_n.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from .params import C_FS, GearParams
+
+
+def pair(owner: str, name: str, value: Any, lo: float, hi: float) -> tuple[float, float]:
+    """Validate a (low, high) pair of factors inside [lo, hi] with low <= high."""
+    where = f"{owner}.{name}"
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) != 2:
+        raise ValueError(f"{where} must be a pair (low, high) of numbers in [{lo:g}, {hi:g}], got {value!r}")
+    out = []
+    for v in value:
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
+            raise ValueError(f"{where} must be a pair (low, high) of numbers in [{lo:g}, {hi:g}], got {value!r}")
+        if not lo <= float(v) <= hi:
+            raise ValueError(f"{where} must lie in [{lo:g}, {hi:g}], got {value!r}")
+        out.append(float(v))
+    if out[1] < out[0]:
+        raise ValueError(f"{where} must be (low, high) with low <= high, got {value!r}")
+    return out[0], out[1]
+
+
+def int_pair(owner: str, name: str, value: Any, lo: int, hi: int) -> tuple[int, int]:
+    where = f"{owner}.{name}"
+    ok = not isinstance(value, (str, bytes)) and isinstance(value, Sequence) and len(value) == 2
+    ok = ok and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in value)
+    if not ok or not (lo <= value[0] <= value[1] <= hi):
+        raise ValueError(
+            f"{where} must be a pair (low, high) of integers with {lo} <= low <= high <= {hi}, got {value!r}"
+        )
+    return int(value[0]), int(value[1])
+
+
+def from_value(cls: Any, owner: str, value: Any) -> Any:
+    """None, an instance, or a dict of the dataclass's fields (unknown keys refused)."""
+    if value is None or isinstance(value, cls):
+        return value
+    if isinstance(value, Mapping):
+        valid = [f.name for f in fields(cls)]
+        unknown = sorted(set(value) - set(valid))
+        if unknown:
+            raise ValueError(f"unknown {owner} key(s) {unknown}; valid keys: {valid}")
+        return cls(**dict(value))
+    raise ValueError(
+        f"{owner} must be None, a {cls.__name__} or a dict of its fields {[f.name for f in fields(cls)]}, got {value!r}"
+    )
+
+
+@dataclass(frozen=True)
+class PlantFamily:
+    """A family of gear pairs: uniform factors on the nominal parameters, one draw per episode.
+
+    Attributes:
+        load: (low, high) factor on both torques T_p and T_g (the operating load; the same factor keeps
+            the torque ratio of the pair). Default (0.4, 1.5): light to 150 % load.
+        e_m1: (low, high) factor on the transmission-error amplitude e_m1 (manufacturing and wear;
+            default (0.5, 2.0): half to twice the nominal profile error).
+
+    Mesh stiffness (+-20 %) and its variation kappa (0.1-0.35) barely move the quiet window (measured in
+    docs/ENVIRONMENT.md), so they stay at their nominal values.
+    """
+
+    load: tuple[float, float] = (0.4, 1.5)
+    e_m1: tuple[float, float] = (0.5, 2.0)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "load", pair("plant_family", "load", self.load, 1e-3, 100.0))
+        object.__setattr__(self, "e_m1", pair("plant_family", "e_m1", self.e_m1, 0.0, 100.0))
+
+    def draw(self, rng: np.random.Generator) -> dict[str, float]:
+        """Factors of one plant: {"load": ..., "e_m1": ...} (two uniform draws, in this order)."""
+        return {"load": float(rng.uniform(*self.load)), "e_m1": float(rng.uniform(*self.e_m1))}
+
+    @staticmethod
+    def plant(base: GearParams, factors: Mapping[str, float], duty: float = 1.0) -> GearParams:
+        """The gear pair with ``factors`` applied to ``base`` and the load times ``duty``."""
+        f = float(factors["load"]) * float(duty)
+        return base.replace(T_p=base.T_p * f, T_g=base.T_g * f, e_m1=base.e_m1 * float(factors["e_m1"]))
+
+    def check(self, base: GearParams, duty_levels: Sequence[float], min_static_force: float) -> None:
+        """Refuse a family whose draws leave the simulator's valid range (checked at the corners).
+
+        Every corner of the (load x duty, e_m1) box must give valid :class:`GearParams` and a static mesh
+        force >= ``min_static_force`` [k_m0 b0]; the message names the setting and the offending value.
+        """
+        for lf in self.load:
+            for d in duty_levels:
+                for ef in self.e_m1:
+                    try:
+                        p = self.plant(base, {"load": lf, "e_m1": ef}, d)
+                    except ValueError as exc:
+                        raise ValueError(
+                            f"plant_family {self.to_dict()} with duty level {d:g} leaves the simulator's valid range "
+                            f"at load x{lf * d:g}, e_m1 x{ef:g}: {exc}"
+                        ) from None
+                    if not p.consts[C_FS] >= min_static_force:
+                        raise ValueError(
+                            f"plant_family.load x duty level {lf:g} x {d:g} unloads the mesh: static mesh force "
+                            f"{p.consts[C_FS]:g} k_m0 b0 (need >= {min_static_force:g}); raise plant_family.load[0] "
+                            "or the duty levels"
+                        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"load": list(self.load), "e_m1": list(self.e_m1)}
+
+
+@dataclass(frozen=True)
+class DutyCycle:
+    """A load duty cycle: the load torque times a level that changes at random times.
+
+    Attributes:
+        levels: load multipliers (each in (0, 10]); each segment draws one uniformly from them.
+        segment_steps: (low, high) length of a segment in environment steps (uniform integers).
+    """
+
+    levels: tuple[float, ...] = (1.0, 0.6)
+    segment_steps: tuple[int, int] = (20, 50)
+
+    def __post_init__(self) -> None:
+        lv = self.levels
+        if isinstance(lv, (str, bytes)) or not isinstance(lv, Sequence) or len(lv) == 0:
+            raise ValueError(f"duty_cycle.levels must be a non-empty list of load multipliers in (0, 10], got {lv!r}")
+        out = []
+        for v in lv:
+            ok = not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
+            if not ok or not math.isfinite(v) or not 0.0 < float(v) <= 10.0:
+                raise ValueError(f"duty_cycle.levels must be load multipliers in (0, 10], got {lv!r}")
+            out.append(float(v))
+        object.__setattr__(self, "levels", tuple(out))
+        object.__setattr__(self, "segment_steps", int_pair("duty_cycle", "segment_steps", self.segment_steps, 1, 10**6))
+
+    def draw(self, rng: np.random.Generator, steps: int) -> np.ndarray:
+        """Load multiplier of each of ``steps`` environment steps (segment length first, then its level)."""
+        out = np.empty(steps)
+        t = 0
+        while t < steps:
+            n = int(rng.integers(self.segment_steps[0], self.segment_steps[1] + 1))
+            out[t : t + n] = self.levels[int(rng.integers(len(self.levels)))]
+            t += n
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"levels": list(self.levels), "segment_steps": list(self.segment_steps)}
+
+
+def random_demand(rng: np.random.Generator, steps: int, lo: float, hi: float, segment: tuple[int, int]) -> np.ndarray:
+    """Piecewise-constant operator demand: a level uniform in [lo, hi] held for ``segment`` steps (uniform integers)."""
+    out = np.empty(steps + 1)
+    t = 0
+    while t < steps + 1:
+        n = int(rng.integers(segment[0], segment[1] + 1))
+        out[t : t + n] = rng.uniform(lo, hi)
+        t += n
+    return out
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One episode's scenario: what the environment simulates (never observed by the agent).
+
+    Attributes:
+        params: the drawn gear pair at duty level 1.
+        factors: the family factors of the draw ({"load", "e_m1"}; 1.0 without a family).
+        load_factor: (max_steps,) duty multiplier of the load during step t (t = 0 is the first step;
+            the warm-up runs at ``load_factor[0]``).
+        demand: (max_steps + 1,) required omega charged in step t (entry t + 1 is shown after step t), or
+            None without a demand.
+        initial_omega: omega of the warm-up (the start of the episode).
+    """
+
+    params: GearParams
+    factors: dict[str, float]
+    load_factor: np.ndarray
+    demand: np.ndarray | None
+    initial_omega: float
+
+    def params_at(self, step: int) -> GearParams:
+        """The gear pair during step ``step`` (0-based, clipped to the episode)."""
+        i = min(max(int(step), 0), len(self.load_factor) - 1)
+        return self.params_at_level(float(self.load_factor[i]))
+
+    def params_at_level(self, level: float) -> GearParams:
+        """The gear pair under duty level ``level`` (load torques times ``level``)."""
+        if level == 1.0:
+            return self.params
+        return PlantFamily.plant(self.params, {"load": 1.0, "e_m1": 1.0}, level)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "factors": dict(self.factors),
+            "initial_omega": self.initial_omega,
+            "load_factor": self.load_factor.tolist(),
+            "demand": None if self.demand is None else self.demand.tolist(),
+        }
+
+
+__all__ = ["DutyCycle", "Episode", "PlantFamily", "random_demand"]
+
+
+V1_SETTINGS: dict[str, Any] = {"action_mode": "target", "periods_per_step": 48, "max_domega": 0.1, "max_steps": 100}
+"""``GearSpeed-v1``: the settings that differ from ``GearSpeed-v0`` (docs/ENVIRONMENT.md says why)."""
+DEMAND_SETTINGS: dict[str, Any] = {
+    **V1_SETTINGS,
+    "plant_family": {"load": (0.4, 1.5), "e_m1": (0.5, 2.0)},
+    "duty_cycle": {"levels": (1.0, 0.6), "segment_steps": (20, 50)},
+    "demand": "random",
+    "demand_segment_steps": (10, 30),
+    "throughput": "delivered",
+    "w_demand": 1.0,
+}
+"""``GearSpeedDemand-v0``: the settings that differ from ``GearSpeed-v0``."""
+TASK_SETTINGS: dict[str, dict[str, Any]] = {
+    "GearSpeed-v0": {},
+    "GearSpeed-v1": V1_SETTINGS,
+    "GearSpeedDemand-v0": DEMAND_SETTINGS,
+}
+"""Registered tasks and their settings (``gym.make(ID)`` uses these; keywords override them)."""
+
+
+def task_config(env_id: str, settings: Mapping[str, Any] | None = None) -> Any:
+    """The validated ``GearSpeedConfig`` of a registered task, with ``settings`` overriding its defaults."""
+    from .env_config import GearSpeedConfig
+
+    if env_id not in TASK_SETTINGS:
+        raise ValueError(f"env id must be one of {list(TASK_SETTINGS)}, got {env_id!r}")
+    return GearSpeedConfig.from_kwargs({**TASK_SETTINGS[env_id], **dict(settings or {})})
