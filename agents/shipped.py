@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from .policy import BasePolicy
+
 FORMAT = "gear-env-policy/1"
 ACTIVATIONS = ("Tanh", "ReLU")
 
@@ -78,7 +80,7 @@ def export_policy(
     return out
 
 
-class ShippedPolicy:
+class ShippedPolicy(BasePolicy):
     """A shipped policy: frozen observation normalisation + the SB3 actor-critic network."""
 
     def __init__(self, folder: str | Path, name: str = "pretrained"):
@@ -134,15 +136,11 @@ class ShippedPolicy:
         mean, var, eps, clip = self.norm
         return np.clip((obs - mean) / np.sqrt(var + eps), -clip, clip).astype(np.float32)
 
-    def predict(
-        self,
-        observation: np.ndarray,
-        state: Any = None,
-        episode_start: np.ndarray | None = None,
-        deterministic: bool = True,
+    def predict_batch(
+        self, observations: np.ndarray, state: Any, episode_start: np.ndarray | None, deterministic: bool
     ) -> tuple[np.ndarray, Any]:
-        """Actions for one observation (obs_dim,) or a batch (n, obs_dim); ``state`` is passed through."""
-        obs = np.asarray(observation, np.float64)
+        """Actions (n, 1) for observations (n, obs_dim); ``state`` is passed through."""
+        obs = np.asarray(observations, np.float64)
         if obs.shape[-1] != self.observation_space.shape[0]:
             raise ValueError(
                 f"policy {self.name!r} ({self.env_id}) takes {self.observation_space.shape[0]} observation features, "
@@ -170,7 +168,7 @@ def export_run(run_dir: str | Path, env_id: str, out_dir: str | Path, use_best: 
         metrics = json.loads(mpath.read_text(encoding="utf-8"))
     stem = "best_model" if use_best else "model"
     model = load_ppo_model(Path(run_dir) / f"{stem}.zip")
-    vn = load_vecnormalize(Path(run_dir) / ("best_vecnormalize.pkl" if use_best else "vecnormalize.pkl"))
+    vn = load_vecnormalize(Path(run_dir) / ("best_vecnormalize.npz" if use_best else "vecnormalize.npz"))
     summary = {
         "run": Path(run_dir).name,
         "trained_as": cfg.get("env_id"),
