@@ -69,7 +69,7 @@ def make_config(env_id: str, cfg: Any = None) -> Any:
     if env_id not in GEAR_ENV_IDS:
         return dict(cfg or {})
     cls = _config_class()
-    from gear_env.tasks import task_config
+    from gear_env.env_config import task_config
 
     if cfg is None:
         return task_config(env_id)

@@ -23,7 +23,7 @@ def bench_task(env_id: str, seconds: float, vector: int = 0) -> float:
     """Env steps per CPU second of ``env_id`` (``vector`` sub-envs in the vector env, 0: single env)."""
     from bench_env import _timed  # benchmarks/ is the script's folder
 
-    from gear_env.tasks import task_config
+    from gear_env.env_config import task_config
 
     cfg = task_config(env_id)
     if vector:
@@ -66,7 +66,8 @@ def main() -> int:
     ap.add_argument("--seconds", type=float, default=3.0, help="CPU seconds per measurement")
     ap.add_argument("--rounds", type=int, default=2, help="interleaved rounds")
     args = ap.parse_args()
-    from gear_env.tasks import TASK_SETTINGS, task_config
+    from gear_env.env_config import task_config
+    from gear_env.tasks import TASK_SETTINGS
 
     print(f"{platform.processor() or platform.machine()}, load average {os.getloadavg()}")
     rates: dict[tuple[str, int], list[float]] = {}

@@ -83,8 +83,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from agents.registry import resolve_policy
+    from gear_env.env_config import task_config
     from gear_env.evaluation import evaluate_policies
-    from gear_env.tasks import task_config
 
     cfg = task_config(args.env)
     base = evaluate_policies(

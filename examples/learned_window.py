@@ -40,8 +40,8 @@ def learned_window(policy_spec: str = "pretrained", hold: int = 6, levels: np.nd
     """One curve per plant of PLANTS (see :func:`gear_env.plots.tasks.plot_learned_window`)."""
     from agents.registry import resolve_policy
     from gear_env.env import GearSpeedEnv
+    from gear_env.env_config import task_config
     from gear_env.evaluation import steady_reward_map
-    from gear_env.tasks import task_config
 
     base = task_config("GearSpeedDemand-v0")
     levels = np.round(np.arange(0.2, 2.81, 0.2), 3) if levels is None else np.asarray(levels, float)

@@ -194,6 +194,15 @@ class GearSpeedConfig(TableConfig):
         return out if np.ndim(step) else float(out)
 
 
+def task_config(env_id: str, settings: Mapping[str, Any] | None = None) -> Any:
+    """The validated ``GearSpeedConfig`` of a registered task, with ``settings`` overriding its defaults."""
+    from .tasks import TASK_SETTINGS
+
+    if env_id not in TASK_SETTINGS:
+        raise ValueError(f"env id must be one of {list(TASK_SETTINGS)}, got {env_id!r}")
+    return GearSpeedConfig.from_kwargs({**TASK_SETTINGS[env_id], **dict(settings or {})})
+
+
 __all__ = [
     "ACTION_MODES",
     "DEMAND_PRESETS",
@@ -202,4 +211,5 @@ __all__ = [
     "GearSpeedConfig",
     "TableConfig",
     "table_config",
+    "task_config",
 ]

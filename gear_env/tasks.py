@@ -238,12 +238,3 @@ TASK_SETTINGS: dict[str, dict[str, Any]] = {
     "GearSpeedDemand-v0": DEMAND_SETTINGS,
 }
 """Registered tasks and their settings (``gym.make(ID)`` uses these; keywords override them)."""
-
-
-def task_config(env_id: str, settings: Mapping[str, Any] | None = None) -> Any:
-    """The validated ``GearSpeedConfig`` of a registered task, with ``settings`` overriding its defaults."""
-    from .env_config import GearSpeedConfig
-
-    if env_id not in TASK_SETTINGS:
-        raise ValueError(f"env id must be one of {list(TASK_SETTINGS)}, got {env_id!r}")
-    return GearSpeedConfig.from_kwargs({**TASK_SETTINGS[env_id], **dict(settings or {})})

@@ -8,9 +8,9 @@ import pytest
 
 import gear_env  # noqa: F401  (registers the tasks)
 from gear_env.env import GearSpeedEnv
-from gear_env.env_config import GearSpeedConfig
+from gear_env.env_config import GearSpeedConfig, task_config
 from gear_env.params import GearParams
-from gear_env.tasks import DEMAND_SETTINGS, TASK_SETTINGS, V1_SETTINGS, DutyCycle, PlantFamily, task_config
+from gear_env.tasks import DEMAND_SETTINGS, TASK_SETTINGS, V1_SETTINGS, DutyCycle, PlantFamily
 
 SHORT = {"max_steps": 6, "periods_per_step": 8, "warmup_periods": 16}  # cheap episodes for the tests
 

@@ -71,10 +71,10 @@ def run(args: argparse.Namespace) -> int:
         f"seeds {args.seed}..{args.seed + args.episodes - 1} (a fresh numba cache first compiles for about a minute)",
         flush=True,
     )
+    from ..env_config import task_config
     from ..evaluation import evaluate_policies
     from ..io import atomic_write_text, read_json
     from ..schedules import SpeedSchedule
-    from ..tasks import task_config
 
     data = None
     if args.config:
