@@ -329,6 +329,10 @@ def _throughput(label: str, v: Any, cfg: Any) -> str:
     return v
 
 
+def _is_delivered(v: Any) -> float:
+    return 1.0 if v == "delivered" else 0.0
+
+
 def _not_none(v: Any) -> float:
     return 1.0 if v is not None else 0.0
 
@@ -384,7 +388,7 @@ REWARDS: tuple[Term, ...] = (
          "paid for speed (throughput at constant torque); with `throughput=\"delivered\"` only up to the demand",
          params=(Setting("throughput", "all", _throughput, '"all", "delivered"',
                          'what is paid: all of omega, or omega delivered against the demand (needs a demand)',
-                         kernel=lambda v: 1.0 if v == "delivered" else 0.0),)),
+                         kernel=_is_delivered),)),
     Term("chaos", 1.0, "- w_chaos * c", "non-periodic motion, c = clip(defect / defect_scale, 0, 1)"),
     Term("contact", 0.5, "- w_contact * contact_loss_fraction", "time the teeth were apart or in back contact"),
     Term("impact", 0.2, "- w_impact * (drive re-impacts + back_impact_weight * back impacts) / mesh period",

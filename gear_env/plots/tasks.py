@@ -61,8 +61,11 @@ def plot_learned_window(
             0, floquet_window[1] - floquet_window[0], bottom=floquet_window[0], width=0.8, color="tab:orange", alpha=0.6
         )
     bar.bar(1, paper_window[1] - paper_window[0], bottom=paper_window[0], width=0.8, color="tab:purple", alpha=0.5)
+    if ref is not None:
+        bar.set_ylim(ref.get_ylim())
+    bar.set_xlim(-0.6, 1.6)
     bar.set_xticks([0, 1], ["Floquet\n(nominal)", "paper"], fontsize=8)
-    bar.tick_params(axis="y", labelleft=False)
+    bar.tick_params(axis="y", labelleft=False, labelright=True)
     bar.set_title("stable\nwindows", fontsize=9)
     if title:
         fig.suptitle(title, fontsize=10)
