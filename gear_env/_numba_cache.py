@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import sys
 from pathlib import Path
 
 # files (glob patterns) whose njit code is cached (their constants and callees included)
@@ -65,3 +66,33 @@ def configure() -> str | None:
 
 
 CACHE_DIR = configure()
+
+
+_CHECKED: set[str] = set()
+
+
+def cache_has(stem: str, cache_dir: str | None = None) -> bool:
+    """True when the numba cache folder holds compiled code of the module file ``stem`` (e.g.
+    ``"env_kernels"``; numba names its index files ``<stem>.<function>-<line>.py3XX.nbi``)."""
+    folder = CACHE_DIR if cache_dir is None else cache_dir
+    if folder is None:
+        return False
+    return next(Path(folder).rglob(f"{stem}.*.nbi"), None) is not None
+
+
+def announce_compile(stem: str, what: str, duration: str, cache_dir: str | None = None) -> bool:
+    """Say once per process, on stderr, that ``what`` is about to be compiled when the cache has none
+    of ``stem``'s code (first use of this version of the package on this machine). Returns whether it
+    spoke. ``GEAR_ENV_QUIET=1`` silences it."""
+    if stem in _CHECKED:
+        return False
+    _CHECKED.add(stem)
+    if os.environ.get("GEAR_ENV_QUIET") == "1" or cache_has(stem, cache_dir):
+        return False
+    print(
+        f"gear-env: compiling {what} with numba (first use of this version on this machine: about {duration}; "
+        "cached on disk afterwards; `gear-env compile` does it ahead of time)",
+        file=sys.stderr,
+        flush=True,
+    )
+    return True

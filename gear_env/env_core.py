@@ -24,6 +24,7 @@ import numpy as np
 from . import env_kernels as EK
 from . import env_terms as ET
 from . import kernels as K
+from ._numba_cache import announce_compile
 from .env_config import GearSpeedConfig
 from .integration import integrate
 from .params import C_FS, GearParams, model_code
@@ -113,6 +114,7 @@ class GearSpeedCore:
     """
 
     def __init__(self, config: GearSpeedConfig, n: int, single: bool = False):
+        announce_compile("env_kernels", "the environment's kernels", "1-2 min on 2 cores")
         self.config = cfg = config
         self.n = n
         self.single = single
