@@ -29,11 +29,11 @@ PLANTS = (
 
 def quiet_intervals(omegas, terms) -> list[tuple[float, float]]:
     """Intervals of omega where the steady motion is periodic, keeps contact (< 5 %) and has no impacts."""
-    from gear_env.evaluation import _intervals
+    from gear_env.bands import mask_intervals
 
     imp = np.asarray(terms["drive_impacts"]) + np.asarray(terms["back_impacts"])
     ok = (np.asarray(terms["chaos"]) < 0.5) & (np.asarray(terms["contact_loss"]) < 0.05) & (imp < 1e-3)
-    return _intervals(np.asarray(omegas), ok)
+    return mask_intervals(np.asarray(omegas), ok)
 
 
 def learned_window(policy_spec: str = "pretrained", hold: int = 6, levels: np.ndarray | None = None) -> list[dict]:

@@ -31,8 +31,9 @@ class RegimeBands:
         return {"bands": {k: [list(b) for b in v] for k, v in self.bands.items()}, "source": self.source}
 
 
-def _intervals(omegas: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
-    """Maximal runs of True in mask as (lo, hi) omega intervals (edges half-way to neighbours)."""
+def mask_intervals(omegas: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
+    """Maximal runs of True in ``mask`` as (lo, hi) intervals of ``omegas`` (Omega/omega_n, sorted);
+    interval edges lie half-way to the neighbouring grid points."""
     out = []
     n = len(omegas)
     edges = np.concatenate([[omegas[0]], 0.5 * (omegas[1:] + omegas[:-1]), [omegas[-1]]])
@@ -47,6 +48,9 @@ def _intervals(omegas: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]
         else:
             i += 1
     return out
+
+
+_intervals = mask_intervals  # the name used inside the package before it was public
 
 
 _BAND_CACHE: dict[str, RegimeBands] = {}
@@ -107,4 +111,4 @@ def _bands_from_stability_module(cfg: GearSpeedConfig) -> RegimeBands | None:
         return None
 
 
-__all__ = ["RegimeBands", "regime_bands"]
+__all__ = ["RegimeBands", "mask_intervals", "regime_bands"]
