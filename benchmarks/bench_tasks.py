@@ -16,49 +16,15 @@ import argparse
 import os
 import platform
 
-import numpy as np
-
 
 def bench_task(env_id: str, seconds: float, vector: int = 0) -> float:
     """Env steps per CPU second of ``env_id`` (``vector`` sub-envs in the vector env, 0: single env)."""
-    from bench_env import _timed  # benchmarks/ is the script's folder
+    from bench_env import bench_single, bench_vector  # benchmarks/ is the script's folder
 
-    from gear_env.env_config import task_config
+    from gear_env.tasks import TASK_SETTINGS
 
-    cfg = task_config(env_id)
-    if vector:
-        from gear_env.vector_env import GearSpeedVectorEnv
-
-        venv = GearSpeedVectorEnv(vector, cfg)
-        venv.reset(seed=0)
-        acts = np.random.default_rng(0).uniform(-1, 1, (64, vector, 1)).astype(np.float32)
-        k = [0]
-
-        def step():
-            venv.step(acts[k[0] % 64])
-            k[0] += 1
-
-        for _ in range(3):
-            step()
-        n, dt = _timed(step, seconds)
-        return n * vector / dt
-    from gear_env.env import GearSpeedEnv
-
-    env = GearSpeedEnv(cfg)
-    env.reset(seed=0)
-    acts = np.random.default_rng(0).uniform(-1, 1, (4096, 1)).astype(np.float32)
-    k = [0]
-
-    def step1():
-        _, _, te, tr, _ = env.step(acts[k[0] % 4096])
-        k[0] += 1
-        if te or tr:
-            env.reset()
-
-    for _ in range(5):
-        step1()
-    n, dt = _timed(step1, seconds)
-    return n / dt
+    settings = TASK_SETTINGS[env_id]
+    return bench_vector(vector, seconds, **settings) if vector else bench_single(seconds, **settings)
 
 
 def main() -> int:

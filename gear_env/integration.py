@@ -27,7 +27,6 @@ import numpy as np
 
 from . import batch_kernels as BK
 from . import kernels as K
-from ._numba_cache import announce_compile
 
 NEWTON_MAX_ITER = 12
 """Newton iterations per Newmark step before the step is split."""
@@ -101,7 +100,6 @@ def integrate(
     Returns:
         :class:`IntervalRun`.
     """
-    announce_compile("drivers", "the simulator kernels", "30-60 s")
     c = K.readonly(consts)  # one compiled signature whoever calls
     if x.ndim == 1:
         if record:

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from . import kernels as K
+from ._numba_cache import announce_compile
 from .errors import SimulationDivergedError
 from .integration import NEWTON_MAX_ITER as NEWTON_MAX_ITER  # re-exported (older imports)
 from .integration import NEWTON_TOL as NEWTON_TOL
@@ -273,6 +274,7 @@ class GearSimulator:
         initial_state: Any = None,
     ):
         self.params = _check_params(params)
+        announce_compile("drivers", "the simulator kernels", "30-60 s")  # once per process, not per step
         self.model = model
         self.model_code = model_code(model)
         self.auto_steps = steps_per_period is None
@@ -566,6 +568,7 @@ def simulate_batch(
         ValueError: on invalid arguments (the message names the argument).
         SimulationDivergedError: if any system blows up (the first such omega is named).
     """
+    announce_compile("drivers", "the simulator kernels", "30-60 s")
     w = _check_omega_list(omegas, "omegas")
     n_rec = check_count(periods, "periods")
     n_tr = check_count(transient, "transient", 0)
