@@ -7,6 +7,10 @@ runner advanced in one numba call), not a ``SyncVectorEnv`` of single envs. The 
 ``gear_env:<env id>``, so Gymnasium imports ``gear_env`` (which registers the id) in every Ray
 worker, on every node.
 
+The task is ``GearSpeed-v1`` by default (``--env-id`` for another), and RLlib's PPO takes the values of
+that task's entry in ``agents/hyperparams/ppo.yml``, the file the SB3 agent is trained from
+(:func:`ppo_settings`), so the two agents differ in their library, not in their settings.
+
 After training, the deterministic RLlib policy (the mean of its Gaussian) and an SB3 policy (default:
 the shipped ``pretrained`` one) are rolled out by ``gear_env.evaluation.evaluate_policies`` on the
 same episode seeds, and everything is written to one JSON file.
@@ -33,24 +37,49 @@ from typing import Any
 
 import numpy as np
 
-from agents.envs import GEAR_ENV_ID as ENV_ID  # the package's default task (GearSpeed-v0 for now)
+ENV_ID = "GearSpeed-v1"
+"""The task trained by default (the well-posed default task; ``--env-id`` takes any registered one)."""
 
-PPO_SETTINGS: dict[str, Any] = {
-    # the shipped SB3 policy's values (gear_env/data/pretrained/config.json) in RLlib's names
-    "lr": 3e-4,
-    "gamma": 0.999,
-    "lambda_": 0.98,
-    "clip_param": 0.2,
-    "entropy_coeff": 0.0,
-    "vf_loss_coeff": 0.5,
-    "grad_clip": 0.5,
-    "num_epochs": 10,
-    "minibatch_size": 256,
+HYPERPARAMS = os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir, "agents", "hyperparams", "ppo.yml")
+"""rl-zoo3 hyper-parameter file whose entry for the task gives RLlib's PPO settings (one source for both)."""
+
+_RLLIB_NAMES = {
+    "learning_rate": "lr",
+    "gamma": "gamma",
+    "gae_lambda": "lambda_",
+    "clip_range": "clip_param",
+    "ent_coef": "entropy_coeff",
+    "vf_coef": "vf_loss_coeff",
+    "max_grad_norm": "grad_clip",
+    "n_epochs": "num_epochs",
+    "batch_size": "minibatch_size",
 }
-"""PPO hyper-parameters (RLlib ``PPOConfig.training`` names); the batch size is set from the runners."""
+"""SB3 / rl-zoo3 PPO names -> RLlib ``PPOConfig.training`` names."""
 
-ENV_CONFIG: dict[str, Any] = {"action_mode": "target"}
-"""Environment settings for training and evaluation (those of the shipped SB3 policy)."""
+
+def ppo_settings(env_id: str = ENV_ID, hyperparams: str | os.PathLike = HYPERPARAMS) -> dict[str, Any]:
+    """RLlib PPO settings from the task's entry of the rl-zoo3 file (the values the SB3 agent trains with).
+
+    Returns ``{"training": {lr, gamma, lambda_, clip_param, entropy_coeff, vf_loss_coeff, grad_clip,
+    num_epochs, minibatch_size}, "fcnet_hiddens": [...]}``. Not carried over: SB3's ``n_steps`` (the
+    batch comes from the runners, see :func:`build_config`) and ``log_std_init`` (RLlib's default
+    model has no initial log-std setting: its std starts at 1)."""
+    from agents.hyperparams import load_zoo_entry
+
+    ppo = load_zoo_entry(hyperparams, env_id)["ppo"]
+    training = {_RLLIB_NAMES[k]: ppo[k] for k in _RLLIB_NAMES if k in ppo}
+    return {"training": training, "fcnet_hiddens": list(ppo.get("net_arch", [64, 64]))}
+
+
+ENV_CONFIG: dict[str, Any] = {}
+"""Settings overriding the task's registered ones, for training and evaluation (none by default)."""
+
+
+def eval_config(env_id: str, env_config: Mapping[str, Any] | None = None) -> Any:
+    """The validated configuration both policies are evaluated on: the task's settings + ``env_config``."""
+    from gear_env.env_config import task_config
+
+    return task_config(env_id, env_config)
 
 
 class RLlibPolicy:
@@ -105,7 +134,8 @@ def build_config(
     ):
         if isinstance(v, bool) or not isinstance(v, int) or v < lo:
             raise ValueError(f"{name} must be an integer >= {lo}, got {v!r}")
-    settings = {**PPO_SETTINGS, **dict(ppo or {})}
+    base = ppo_settings(env_id)
+    settings = {**base["training"], **dict(ppo or {})}
     batch = max(1, num_env_runners) * num_envs_per_runner * rollout_fragment_length
     settings["minibatch_size"] = min(int(settings["minibatch_size"]), batch)
     return (
@@ -121,7 +151,7 @@ def build_config(
         )
         .learners(num_learners=0)
         .training(train_batch_size_per_learner=batch, **settings)
-        .rl_module(model_config=DefaultModelConfig(fcnet_hiddens=[64, 64], fcnet_activation="tanh"))
+        .rl_module(model_config=DefaultModelConfig(fcnet_hiddens=base["fcnet_hiddens"], fcnet_activation="tanh"))
         .debugging(seed=seed)
     )
 
@@ -221,8 +251,12 @@ def train_and_compare(
         algo.stop()
     finally:
         ray.shutdown()
-    policies = {"rllib-ppo": RLlibPolicy(module), f"sb3-{sb3_policy}": resolve_policy(sb3_policy, env_config)}
-    report = evaluate_policies(policies, env_config, episodes=eval_episodes, seed=eval_seed)
+    cfg = eval_config(env_id, env_config)
+    policies = {
+        "rllib-ppo": RLlibPolicy(module),
+        f"sb3-{sb3_policy}": resolve_policy(sb3_policy, cfg, env_id=env_id),
+    }
+    report = evaluate_policies(policies, cfg, episodes=eval_episodes, seed=eval_seed)
     t_end = time.perf_counter()
     out = report.to_json_dict()
     out.update(
@@ -238,7 +272,11 @@ def train_and_compare(
                 "num_envs_per_runner": num_envs_per_runner,
                 "rollout_fragment_length": rollout_fragment_length,
                 "vector_env_classes": vec_env_classes,
-                "ppo": {**PPO_SETTINGS, "train_batch_size_per_learner": config.train_batch_size_per_learner},
+                "ppo": {
+                    **ppo_settings(env_id)["training"],
+                    "minibatch_size": config.minibatch_size,
+                    "train_batch_size_per_learner": config.train_batch_size_per_learner,
+                },
                 "seed": seed,
                 "history": history,
             },

@@ -22,7 +22,9 @@ pytest.importorskip("rl_zoo3", reason="rl-zoo3 is not installed (pip install -e 
 optuna = pytest.importorskip("optuna", reason="optuna is not installed (pip install -e '.[zoo]')")
 yaml = pytest.importorskip("yaml")
 
-from agents.envs import GEAR_ENV_ID  # noqa: E402  (the task the tests train on; follows the package default)
+from gear_env.env_config import task_config  # noqa: E402
+
+ZOO_ENV = "GearSpeed-v1"  # the task the tests train on: the well-posed default task, as in docs/TRAINING.md
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "agents" / "hyperparams" / "ppo.yml"
@@ -39,7 +41,7 @@ def _env() -> dict[str, str]:
 
 
 def _zoo(module: str, args: list[str], cwd: Path, timeout: float = 600) -> str:
-    cmd = [sys.executable, "-m", f"rl_zoo3.{module}", "--algo", "ppo", "--env", GEAR_ENV_ID]
+    cmd = [sys.executable, "-m", f"rl_zoo3.{module}", "--algo", "ppo", "--env", ZOO_ENV]
     cmd += ["--gym-packages", "gear_env", "--device", "cpu", *args]
     proc = subprocess.run(cmd, cwd=cwd, env=_env(), capture_output=True, text=True, timeout=timeout)
     assert proc.returncode == 0, (
@@ -98,28 +100,31 @@ def test_rl_zoo_train_then_enjoy_replays_what_gear_env_evaluates(tmp_path):
         + ["--seed", "0", "--num-threads", "1", "-f", str(logs)],
         tmp_path,
     )
-    run = logs / "ppo" / f"{GEAR_ENV_ID}_1"
-    assert (run / f"{GEAR_ENV_ID}.zip").is_file(), out[-2000:]
-    saved = yaml.unsafe_load((run / GEAR_ENV_ID / "config.yml").read_text())  # rl-zoo3 writes an OrderedDict tag
+    run = logs / "ppo" / f"{ZOO_ENV}_1"
+    assert (run / f"{ZOO_ENV}.zip").is_file(), out[-2000:]
+    saved = yaml.unsafe_load((run / ZOO_ENV / "config.yml").read_text())  # rl-zoo3 writes an OrderedDict tag
     saved = dict(saved)
-    assert saved["gamma"] == 0.999 and saved["gae_lambda"] == 0.98 and saved["normalize"] is True
-    assert saved["env_kwargs"] == {"action_mode": "target"}
+    entry = yaml.safe_load(CONF.read_text())[ZOO_ENV]
+    assert saved["gamma"] == entry["gamma"] and saved["gae_lambda"] == entry["gae_lambda"]
+    assert saved["normalize"] is True and saved["policy_kwargs"] == entry["policy_kwargs"]
     assert saved["n_envs"] == 2 and saved["n_steps"] == 256  # the command-line overrides won
 
-    model = PPO.load(str(run / f"{GEAR_ENV_ID}.zip"), device="cpu")
+    model = PPO.load(str(run / f"{ZOO_ENV}.zip"), device="cpu")
     assert model.num_timesteps >= 1024
     # rl-zoo3 pickles its statistics; gear-env never unpickles a run folder, so the owner of this
     # (self-made, trusted) run converts it once, as docs/TRAINING.md says
     from agents.runs import convert_pickled_statistics
 
-    vn = load_vecnormalize(convert_pickled_statistics(run / GEAR_ENV_ID / "vecnormalize.pkl"))
-    env = GearSpeedEnv(action_mode="target")
+    vn = load_vecnormalize(convert_pickled_statistics(run / ZOO_ENV / "vecnormalize.pkl"))
+    cfg = task_config(ZOO_ENV)
+    env = GearSpeedEnv(cfg)
     assert model.observation_space == env.observation_space
     ours = run_episode(env, TrainedPolicy(model, vn), seed=0).ret
 
+    n = str(cfg.max_steps)  # one whole episode
     out = _zoo(
         "enjoy",
-        ["-f", str(logs), "--exp-id", "1", "-n", "200", "--no-render", "--deterministic", "--seed", "0"],
+        ["-f", str(logs), "--exp-id", "1", "-n", n, "--no-render", "--deterministic", "--seed", "0"],
         tmp_path,
     )
     rewards = [float(x) for x in re.findall(r"Episode Reward: (-?[\d.]+)", out)]
@@ -146,7 +151,7 @@ def test_rl_zoo_optimize_two_workers_share_one_journal_study(tmp_path):
     cmd_tail += ["--num-threads", "1"]
     procs = []
     for worker in (0, 1):
-        cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", GEAR_ENV_ID]
+        cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", ZOO_ENV]
         cmd += ["--gym-packages", "gear_env", "--device", "cpu", *cmd_tail, "--seed", str(worker)]
         cmd += ["-f", str(tmp_path / f"logs{worker}")]
         procs.append(

@@ -21,11 +21,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents.envs import GEAR_ENV_ID
 from gear_env.env import GearSpeedEnv
+from gear_env.env_config import task_config
 from gear_env.vector_env import GearSpeedVectorEnv
 
 ROOT = Path(__file__).resolve().parents[1]
+ENV_ID = "GearSpeed-v1"  # the task RLlib trains on here (the example's default)
 HAS_RLLIB = importlib.util.find_spec("ray") is not None and importlib.util.find_spec("ray.rllib") is not None
 
 
@@ -41,16 +42,15 @@ def test_rllib_make_vec_builds_the_native_vector_env():
     """What RLlib's EnvRunner calls (gym.make_vec with mode vector_entry_point, the id prefixed with
     its module so Ray workers import it) gives GearSpeedVectorEnv, whose sub-env i reproduces a
     single env seeded seed + i exactly, on the installed Gymnasium (1.4 here, 1.2.2 with RLlib)."""
-    venv = gym.make_vec(
-        f"gear_env:{GEAR_ENV_ID}", num_envs=3, vectorization_mode="vector_entry_point", action_mode="target"
-    )
+    venv = gym.make_vec(f"gear_env:{ENV_ID}", num_envs=3, vectorization_mode="vector_entry_point")
     assert isinstance(venv.unwrapped, GearSpeedVectorEnv)
-    assert venv.num_envs == 3 and venv.config.action_mode == "target"
+    cfg = task_config(ENV_ID)
+    assert venv.num_envs == 3 and venv.config == cfg
     obs, _ = venv.reset(seed=7)
     act = np.array([[0.3], [-0.2], [0.9]], np.float32)
     obs2, rew, *_ = venv.step(act)
     for i in range(3):
-        env = GearSpeedEnv(action_mode="target")
+        env = GearSpeedEnv(cfg)
         o, _ = env.reset(seed=7 + i)
         assert np.array_equal(o, obs[i])
         o2, r, *_ = env.step(act[i])
@@ -78,10 +78,16 @@ class TestRLlibTrainAndCompare:
     def test_rllib_trains_on_the_native_vector_env(self, run):
         mod, res, _, _ = run
         r = res["rllib"]
-        assert res["format"] == "gear-env-rllib/1" and res["env_id"] == GEAR_ENV_ID
+        assert res["format"] == "gear-env-rllib/1" and res["env_id"] == ENV_ID == mod.ENV_ID
         # every EnvRunner (here one remote actor) stepped the package's own vector env
         assert r["vector_env_classes"] == ["gear_env.vector_env.GearSpeedVectorEnv"]
         assert r["ppo"]["train_batch_size_per_learner"] == 4 * 128
+        # RLlib's PPO takes the SB3 agent's values from agents/hyperparams/ppo.yml
+        from agents.hyperparams import load_zoo_entry
+
+        sb3 = load_zoo_entry(ROOT / "agents" / "hyperparams" / "ppo.yml", ENV_ID)["ppo"]
+        assert r["ppo"]["gamma"] == sb3["gamma"] and r["ppo"]["lambda_"] == sb3["gae_lambda"]
+        assert r["ppo"]["lr"] == sb3["learning_rate"] and r["ppo"]["num_epochs"] == sb3["n_epochs"]
         assert r["timesteps"] == 1024 and r["iterations"] == 2  # whole updates of 512 steps
         assert [h["env_steps"] for h in r["history"]] == [512, 1024]
         assert res["ray"]["nodes"] == 1 and res["ray"]["resources"]["CPU"] == 2.0
@@ -98,8 +104,9 @@ class TestRLlibTrainAndCompare:
         assert set(res["policies"]) == {"rllib-ppo", "sb3-pretrained"}
         for s in res["policies"].values():
             assert s["episodes"] == 2 and len(s["returns"]) == 2 and s["diverged"] == 0
-        cfg = mod.ENV_CONFIG
-        again = evaluate_policies({"p": resolve_policy("pretrained", cfg)}, cfg, episodes=2, seed=0).to_json_dict()
+        cfg = mod.eval_config(ENV_ID, mod.ENV_CONFIG)
+        pol = resolve_policy("pretrained", cfg, env_id=ENV_ID)
+        again = evaluate_policies({"p": pol}, cfg, episodes=2, seed=0).to_json_dict()
         assert again["policies"]["p"]["returns"] == res["policies"]["sb3-pretrained"]["returns"]
 
     def test_rllib_checkpoint_reproduces_the_reported_returns(self, run):
@@ -109,10 +116,11 @@ class TestRLlibTrainAndCompare:
 
         mod, res, ckpt, _ = run
         pol = mod.RLlibPolicy(mod.load_module(ckpt))
-        obs = np.stack([GearSpeedEnv(**mod.ENV_CONFIG).reset(seed=s)[0] for s in range(3)])
+        cfg = mod.eval_config(ENV_ID, mod.ENV_CONFIG)
+        obs = np.stack([GearSpeedEnv(cfg).reset(seed=s)[0] for s in range(3)])
         act, _ = pol.predict(obs)
         assert act.shape == (3, 1) and act.dtype == np.float32 and np.all(np.abs(act) <= 1.0)
-        again = evaluate_policies({"r": pol}, mod.ENV_CONFIG, episodes=2, seed=0).to_json_dict()
+        again = evaluate_policies({"r": pol}, cfg, episodes=2, seed=0).to_json_dict()
         assert again["policies"]["r"]["returns"] == res["policies"]["rllib-ppo"]["returns"]
 
     def test_rllib_example_refuses_to_overwrite(self, run):
