@@ -79,3 +79,16 @@ def test_a_family_leaving_the_range_is_refused_before_training(tmp_path):
     with pytest.raises(ValueError, match=r"plant_family.e_m1 must lie in \[0, 100\]"):
         train(options_from_args(build_parser().parse_args(argv)))
     assert not out.exists()
+
+
+def test_learned_window_plot_draws_fixed_best_beside_the_policy():
+    """The figure's fixed-best line (one speed for every plant) is drawn when given, and only then."""
+    from gear_env.plots.tasks import plot_learned_window
+
+    curve = {"label": "p", "demand": [1.2, 1.5, 1.8], "delivered": [1.2, 1.4, 1.5], "quiet": [(1.0, 1.6)]}
+    labels = lambda fig: [ln.get_label() for ln in fig.axes[0].get_lines()]  # noqa: E731
+    with_fixed = plot_learned_window([{**curve, "fixed": [1.15, 1.15, 1.15], "oracle": [1.2, 1.5, 1.6]}])
+    assert "fixed-best (same for every plant)" in labels(with_fixed) and "oracle" in labels(with_fixed)
+    line = next(ln for ln in with_fixed.axes[0].get_lines() if ln.get_label().startswith("fixed-best"))
+    assert list(line.get_ydata()) == [1.15, 1.15, 1.15]
+    assert not any(lb.startswith("fixed-best") for lb in labels(plot_learned_window([curve])))
