@@ -135,7 +135,8 @@ class GearSpeedEnv(gym.Env):
     * v1: the default task made well-posed for stock PPO: ``action_mode="target"`` (a speed reference,
       approached at the acceleration limit), ``periods_per_step=48`` and ``max_domega=0.1`` (the same
       acceleration as v0, half the decisions), ``max_steps=100`` (the same physical episode).
-    * GearSpeedDemand-v0: the first version of the demand task.
+    * GearSpeedDemand-v0: the first version of the demand task (family: load x0.4-1.5, ``e_m1``
+      x0.25-2; demand band ``demand_range=(1.2, 1.8)``; both settled before the first release).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}

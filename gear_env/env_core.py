@@ -318,7 +318,8 @@ class GearSpeedCore:
                 self._load[r, :T] = load
                 self._load[r, T] = load[-1]
             if cfg.demand == "random":
-                self._dem[r, : T + 1] = random_demand(rng, T, cfg.omega_min, cfg.omega_max, cfg.demand_segment_steps)
+                lo, hi = cfg.demand_range or (cfg.omega_min, cfg.omega_max)
+                self._dem[r, : T + 1] = random_demand(rng, T, lo, hi, cfg.demand_segment_steps)
                 self._dem[r, T + 1] = self._dem[r, T]
             if self._scenario or cfg.demand is not None:
                 dem = self._dem[r, : T + 1].copy() if cfg.demand is not None else None

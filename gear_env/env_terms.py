@@ -304,6 +304,16 @@ def _demand_segments(label: str, v: Any, cfg: Any) -> tuple[int, int]:
     return int_pair(owner, name, v, 1, 1_000_000)
 
 
+def _demand_range(label: str, v: Any, cfg: Any) -> Any:
+    """None (the whole speed range) or a (lo, hi) band inside [omega_min, omega_max]."""
+    if v is None:
+        return None
+    from .tasks import pair
+
+    owner, name = label.rsplit(".", 1)
+    return pair(owner, name, v, cfg.omega_min, cfg.omega_max)
+
+
 def _plant_family(label: str, v: Any, cfg: Any) -> Any:
     from .tasks import PlantFamily, from_value
 
@@ -367,9 +377,11 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("warmup_periods", 48, integer(0, 100_000), "[0, 1e5]", "mesh periods before the first observation"),
     Setting("demand", None, _demand, 'None, "steps", "ramp", "random", [(t, omega), ...]',
             'required omega over the episode (t in env steps, piecewise linear); "random": a new level uniform '
-            "over [omega_min, omega_max] every `demand_segment_steps` steps, drawn per episode", kernel=_not_none),
+            "over `demand_range` every `demand_segment_steps` steps, drawn per episode", kernel=_not_none),
     Setting("demand_segment_steps", (10, 30), _demand_segments, "(lo, hi), 1 <= lo <= hi",
             'steps a level of the "random" demand is held (uniform integers)'),
+    Setting("demand_range", None, _demand_range, "None, (lo, hi) in [omega_min, omega_max]",
+            'band of the "random" demand levels (uniform over it; None: [omega_min, omega_max])'),
     Setting("plant_family", None, _plant_family, "None, `PlantFamily` or dict",
             "per-episode gear pair: uniform factors on the load torques (`load`) and on e_m1 (`e_m1`), "
             "see gear_env/tasks.py"),

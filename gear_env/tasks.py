@@ -224,9 +224,10 @@ V1_SETTINGS: dict[str, Any] = {"action_mode": "target", "periods_per_step": 48, 
 """``GearSpeed-v1``: the settings that differ from ``GearSpeed-v0`` (docs/ENVIRONMENT.md says why)."""
 DEMAND_SETTINGS: dict[str, Any] = {
     **V1_SETTINGS,
-    "plant_family": {"load": (0.4, 1.5), "e_m1": (0.5, 2.0)},
+    "plant_family": {"load": (0.4, 1.5), "e_m1": (0.25, 2.0)},
     "duty_cycle": {"levels": (1.0, 0.6), "segment_steps": (20, 50)},
     "demand": "random",
+    "demand_range": (1.2, 1.8),
     "demand_segment_steps": (10, 30),
     "throughput": "delivered",
     "w_demand": 1.0,

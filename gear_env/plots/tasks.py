@@ -22,7 +22,8 @@ def plot_learned_window(
         curves: one dict per plant: ``label`` (str), ``demand`` (m,) demanded omega, ``delivered`` (m,)
             settled omega the policy delivered, ``quiet`` list of (lo, hi) omega intervals where the plant's
             steady motion is quiet (periodic, teeth in contact, no impacts), optionally ``oracle`` (m,) the
-            oracle's settled omega.
+            oracle's settled omega, optionally ``fixed`` (m,) the settled omega of a schedule that does not know
+            the plant (the same for every plant).
         floquet_window: stable interval of the nominal plant's period-1 orbit (Floquet map) containing
             the best speed, drawn as a bar beside the panels.
         paper_window: the paper's stable window [0.4, 1.9], drawn as a bar beside the panels.
@@ -47,6 +48,8 @@ def plot_learned_window(
         ax.plot(d, d, color="0.6", lw=0.8, ls=":", label="delivered = demanded")
         if c.get("oracle") is not None:
             ax.plot(d, c["oracle"], color="tab:gray", lw=1.2, ls="--", label="oracle")
+        if c.get("fixed") is not None:
+            ax.plot(d, c["fixed"], color="tab:red", lw=1.0, ls="-.", label="fixed-best (same for every plant)")
         ax.plot(d, c["delivered"], color="tab:blue", lw=1.8, marker=".", ms=4, label="learned policy")
         ax.set_title(c["label"], fontsize=9)
         ax.set_xlabel("demanded omega")

@@ -1,0 +1,94 @@
+"""GearSpeedDemand-v0's demand band and family: validation, draws inside the band, refusal before training."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gear_env.env_config import task_config
+from gear_env.tasks import DEMAND_SETTINGS, PlantFamily, random_demand
+
+
+@pytest.mark.parametrize(
+    ("value", "match"),
+    [
+        ((1.8, 1.2), r"demand_range must be \(low, high\) with low <= high"),
+        ((0.05, 1.0), r"demand_range must lie in \[0.1, 3\]"),
+        ((1.0, 3.5), r"demand_range must lie in \[0.1, 3\]"),
+        ((1.0,), r"demand_range must be a pair"),
+        ("1.2-1.8", r"demand_range must be a pair"),
+        ((1.0, float("nan")), r"demand_range must be a pair"),
+    ],
+)
+def test_bad_demand_range_names_the_field_and_range(value, match):
+    with pytest.raises(ValueError, match=match):
+        task_config("GearSpeedDemand-v0", {"demand_range": value})
+
+
+def test_demand_range_follows_omega_bounds():
+    cfg = task_config("GearSpeedDemand-v0", {"omega_max": 2.0, "demand_range": (1.2, 1.8)})
+    assert cfg.demand_range == (1.2, 1.8)
+    with pytest.raises(ValueError, match=r"demand_range must lie in \[0.1, 1.5\]"):
+        task_config("GearSpeedDemand-v0", {"omega_max": 1.5, "demand_range": (1.2, 1.8)})
+
+
+def test_random_demand_stays_in_the_band_and_default_is_unchanged():
+    import gymnasium as gym
+
+    env = gym.make("GearSpeedDemand-v0").unwrapped
+    lo, hi = DEMAND_SETTINGS["demand_range"]
+    seen = []
+    for seed in range(5):
+        env.reset(seed=seed)
+        d = env.episode.demand
+        assert lo <= d.min() and d.max() <= hi
+        seen.append(d)
+    assert np.ptp(np.concatenate(seen)) > 0.5 * (hi - lo)  # levels spread over the band
+    # demand_range=None draws over [omega_min, omega_max] with the same random calls as before the setting
+    full = gym.make("GearSpeedDemand-v0", demand_range=None).unwrapped
+    full.reset(seed=3)
+    d = full.episode.demand
+    assert d.min() >= full.config.omega_min and d.max() <= full.config.omega_max
+    assert d.max() - d.min() > hi - lo  # wider than the band
+
+
+def test_random_demand_is_the_documented_draw():
+    rng_a, rng_b = np.random.default_rng(7), np.random.default_rng(7)
+    a = random_demand(rng_a, 40, 1.2, 1.8, (10, 30))
+    n = int(rng_b.integers(10, 31))
+    assert np.all(a[:n] == rng_b.uniform(1.2, 1.8))
+    assert len(a) == 41
+
+
+def test_shipped_family_is_inside_the_simulator_range_and_unloading_is_refused():
+    cfg = task_config("GearSpeedDemand-v0")
+    assert isinstance(cfg.plant_family, PlantFamily)
+    assert cfg.plant_family.e_m1 == (0.25, 2.0) and cfg.plant_family.load == (0.4, 1.5)
+    with pytest.raises(ValueError, match=r"plant_family.load must lie in \[0.001, 100\]"):
+        task_config("GearSpeedDemand-v0", {"plant_family": {"load": (0.0, 1.5), "e_m1": (0.25, 2.0)}})
+
+
+def test_a_family_leaving_the_range_is_refused_before_training(tmp_path):
+    """`gear-env train` refuses the family before it creates the run folder or builds an environment."""
+    from agents.ppo import train
+    from gear_env.cli.train import build_parser, options_from_args
+
+    out = tmp_path / "run"
+    argv = ["--env", "GearSpeedDemand-v0", "--out", str(out), "--timesteps", "4096", "--quiet", "--no-progress"]
+    argv += ["--set", 'plant_family={"load": [0.4, 1.5], "e_m1": [0.25, 200.0]}']
+    with pytest.raises(ValueError, match=r"plant_family.e_m1 must lie in \[0, 100\]"):
+        train(options_from_args(build_parser().parse_args(argv)))
+    assert not out.exists()
+
+
+def test_learned_window_plot_draws_fixed_best_beside_the_policy():
+    """The figure's fixed-best line (one speed for every plant) is drawn when given, and only then."""
+    from gear_env.plots.tasks import plot_learned_window
+
+    curve = {"label": "p", "demand": [1.2, 1.5, 1.8], "delivered": [1.2, 1.4, 1.5], "quiet": [(1.0, 1.6)]}
+    labels = lambda fig: [ln.get_label() for ln in fig.axes[0].get_lines()]  # noqa: E731
+    with_fixed = plot_learned_window([{**curve, "fixed": [1.15, 1.15, 1.15], "oracle": [1.2, 1.5, 1.6]}])
+    assert "fixed-best (same for every plant)" in labels(with_fixed) and "oracle" in labels(with_fixed)
+    line = next(ln for ln in with_fixed.axes[0].get_lines() if ln.get_label().startswith("fixed-best"))
+    assert list(line.get_ydata()) == [1.15, 1.15, 1.15]
+    assert not any(lb.startswith("fixed-best") for lb in labels(plot_learned_window([curve])))
