@@ -121,12 +121,26 @@ def excitation(phi, c):
 
 @kernel_inline
 def backlash(delta, bd):
-    """Dead-zone function f(Delta; B_d) (eq. 9) and its region (+1 drive, 0 apart, -1 back)."""
+    """Dead-zone function f(Delta; B_d) (eq. 9) and its region (+1 drive, 0 apart, -1 back).
+
+    The backlash law is these four functions: this one, :func:`backlash_branch` (f on a given
+    branch), :func:`backlash_slopes` (its derivatives, for the Newton and tangent Jacobians) and
+    :func:`backlash_inverse` (for the static equilibrium); change them together.
+    """
     if delta >= bd:
-        return delta - bd, 1
+        return backlash_branch(delta, bd, 1), 1
     if delta <= -bd:
-        return delta + bd, -1
-    return 0.0, 0
+        return backlash_branch(delta, bd, -1), -1
+    return backlash_branch(delta, bd, 0), 0
+
+
+@kernel_inline
+def backlash_branch(delta, bd, region):
+    """f(Delta; B_d) on the branch ``region`` (+1: Delta - B_d, -1: Delta + B_d, 0: 0), also
+    outside that branch's range of Delta (the one-sided continuation the tangent map needs)."""
+    if region == 0:
+        return 0.0
+    return delta - region * bd
 
 
 @kernel_inline
@@ -305,6 +319,20 @@ def force_direction_t(sp, cp, fr, k):
         -(cp + fr * sp) * iep,
         -(sp - fr * cp) * ieg,
         (cp + fr * sp) * ieg,
+    )
+
+
+@kernel_inline
+def force_direction_dpsi_t(sp, cp, fr, k):
+    """dw/dpsi: derivative of :func:`force_direction_t` with respect to the meshing angle psi
+    (friction factor fr held fixed)."""
+    iep = k[K_IEP]
+    ieg = k[K_IEG]
+    return (
+        (cp + fr * sp) * iep,
+        (sp - fr * cp) * iep,
+        -(cp + fr * sp) * ieg,
+        -(sp - fr * cp) * ieg,
     )
 
 
