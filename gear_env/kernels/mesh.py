@@ -1,23 +1,34 @@
-"""The gear-bearing model: mesh geometry, backlash, excitation, friction, mesh force and
-equations of motion (MODEL.md sec. 3b), as inline numba leaf functions plus their array forms.
+"""The gear-bearing model, written once: mesh geometry, backlash, excitation, friction, mesh
+force and the equations of motion (MODEL.md sec. 3b), as inline numba leaf functions plus their
+array forms.
 
-This is the file to open to change a physics term: the backlash law (:func:`backlash`), the
-geometry of the dynamic model (:func:`geometry_t`, eqs. 5-8), the transmission error and the
-stiffness variation (:func:`excitation`), the mesh deflection and its rate (:func:`deflection_t`),
-the mesh force (:func:`force_t`), the friction extension (:func:`friction_t`), the
-accelerations (:func:`accel`) and the static equilibrium (:func:`static_equilibrium`).
-:func:`mesh_t` gathers the mesh quantities of a state. The Newmark step (``kernels.newmark``:
-the Newton residual, its Jacobian and the Taylor update of the dynamic model) and the SIMD path
-(``gear_env.batch_kernels``) take the deflection, the force and the constants
-(:func:`step_consts`, named by the ``K_*`` indices of ``kernels.layout``) from here. The Newton
-residual writes the bearing and inertia terms of :func:`accel` in residual form,
-``r = a + C v + K q + w F - ext`` with ``w`` the force direction per unit mass; keep the two
-in step (``tests/test_kernels.py`` checks that a converged step satisfies :func:`accel` and the
-reference right-hand side).
+This is the one file to open to change a physics term. Every path takes its arithmetic from the
+leaves here, inlined by numba: the explicit accelerations (:func:`accel`), the Newton residual,
+its Jacobian and the dynamic model's Taylor update (``kernels.newmark``), the SIMD lanes
+(``gear_env.batch_kernels``, which run the same Newton iteration), the static equilibrium
+(:func:`static_equilibrium`) and the tangent map of continuation (``analysis/tangent.py``).
+
+=============================  ======================================================================
+term                           leaves (change them together)
+=============================  ======================================================================
+backlash law (eq. 9)           :func:`backlash`, :func:`backlash_branch`, :func:`backlash_slopes`,
+                               :func:`backlash_inverse`
+dynamic geometry (eqs. 5-8)    :func:`geometry_t`, its first-order update :func:`geometry_taylor_t`
+excitation (TE, stiffness)     :func:`excitation`
+mesh deflection and rate       :func:`deflection_t`, its gradient :func:`deflection_gradient_t`
+mesh force                     :func:`force_t`, its partial derivatives :func:`force_gradient_t`
+friction extension             :func:`friction_t`, the tilt in :func:`force_direction_t`
+bearings, weights, inertia     :func:`bearing_t`, :func:`eom_residual_t`
+equations of motion            :func:`eom_residual_t`: r = a + C v + K q + w F - ext (accel = -r(0))
+=============================  ======================================================================
+
+``tests/test_physics_once.py`` reads the package's source and fails if a constant of the
+equations of motion (``K_IEP`` ... ``K_FS``) is named outside this file or the step constants are
+indexed by position, and checks every path against the reference on random states.
 
 ``gear_env/reference.py`` states the same equations in readable NumPy (a right-hand side for
-SciPy's ``solve_ivp``), written independently from MODEL.md. ``tests/test_kernels.py`` compares
-the geometry and the accelerations term by term and ``tests/test_verification.py`` whole
+SciPy's ``solve_ivp``), written independently from MODEL.md; read it first. ``tests/test_kernels.py``
+compares the geometry and the accelerations term by term and ``tests/test_verification.py`` whole
 trajectories, so a change made here and not there (or the reverse) fails a test.
 
 Plain arrays and floats in, arrays out; everything dimensionless, in natural time
