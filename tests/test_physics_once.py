@@ -110,6 +110,25 @@ def test_static_equilibrium_is_at_rest_under_the_one_residual(model, friction, p
         np.testing.assert_allclose(x, reference_initial_state(p, model), rtol=1e-12, atol=1e-12)
 
 
+def test_backlash_law_leaves_agree():
+    """backlash, backlash_branch, backlash_slopes and backlash_inverse state one law: f on the
+    selected branch, its slopes by central differences, and the inverse on the drive side."""
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        bd = rng.uniform(0.2, 2.0)
+        delta = rng.uniform(-3.0, 3.0)
+        f, region = K.backlash(delta, bd)
+        assert f == K.backlash_branch(delta, bd, region)
+        sd, sb = K.backlash_slopes(delta, bd, region)
+        h = 1e-6
+        dd = (K.backlash_branch(delta + h, bd, region) - K.backlash_branch(delta - h, bd, region)) / (2 * h)
+        db = (K.backlash_branch(delta, bd + h, region) - K.backlash_branch(delta, bd - h, region)) / (2 * h)
+        assert abs(dd - sd) < 1e-8 and abs(db - sb) < 1e-8
+        if region == 1:
+            assert abs(K.backlash_inverse(f, bd) - delta) < 1e-14
+    assert K.backlash(1.0, 1.0) == (0.0, 1) and K.backlash_branch(1.0, 1.0, 1) == 0.0
+
+
 def test_constant_model_newton_jacobian_is_exact():
     """The constant model is piecewise linear: with the Jacobian assembled from the leaves exact,
     one Newton iteration from a poor guess lands on the solution of the step whenever the
