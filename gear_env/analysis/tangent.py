@@ -22,9 +22,11 @@ Alongside every step the variational equations of the *discrete* step are propag
 
 The derivative of the acceleration :func:`accel_jacobian` is written here (the kernels compute
 the force, not its full derivative); tests/test_continuation.py checks it against finite
-differences of ``kernels.accel``. Neglected: the second derivative of psi times the relative
-displacement perpendicular to the line of action (exactly zero on every motion of the model,
-MODEL.md sec. 6).
+differences of ``kernels.accel``. It takes the force, its branch and slopes, the force
+direction, the bearing terms and the line of action from the leaves of ``kernels.mesh`` and
+adds the dependence of the force direction and of Delta on psi. Neglected: the second
+derivative of psi times the relative displacement perpendicular to the line of action (exactly
+zero on every motion of the model, MODEL.md sec. 6).
 """
 
 from __future__ import annotations
@@ -59,13 +61,10 @@ def accel_jacobian(s, ce, se, omega, kk, k, dynamic, region, J):
     columns 0-4 d/dq, 5-9 d/dv (natural time, dimensionless). Returns the mesh force Fhat.
     """
     delta, ddelta, bd, f, reg0, sp, cp, db0, db1, dp0, dp1 = K.mesh_t(s, ce, se, omega, k, dynamic)
-    r = float(region)
-    ar = abs(r)
-    if region == reg0:
-        fr_ = f
-    else:  # the force of the requested branch (continuous across the kink)
-        fr_ = delta - r * bd if region != 0 else 0.0
-    F = k[8] * ddelta + kk * fr_
+    # the force of the requested branch (continuous across the kink) and its slopes
+    F = K.force_t(ddelta, K.backlash_branch(delta, bd, region), kk, k)
+    sd, sb = K.backlash_slopes(delta, bd, region)
+    dF_ddd = K.force_gradient_t(delta, bd, region, kk, k)[0]  # dF/dDelta'
     fr = K.friction_t(ce, se, k)
     dx = s[0] - s[2]
     dy = s[1] - s[3]
@@ -76,22 +75,25 @@ def accel_jacobian(s, ce, se, omega, kk, k, dynamic, region, J):
     A = dvx * cp + dvy * sp
     psid = dp0 * dvx + dp1 * dvy
     pq = (dp0, dp1, -dp0, -dp1, 0.0)
-    g = (sp, -cp, -sp, cp, 1.0)
+    g = K.deflection_gradient_t(sp, cp)
     dPq = (cp, sp, -cp, -sp, 0.0)
     dbq = (db0, db1, -db0, -db1, 0.0)
-    wv = (k[0] * (sp - fr * cp), -k[0] * (cp + fr * sp), -k[1] * (sp - fr * cp), k[1] * (cp + fr * sp), 1.0)
-    dw = (k[0] * (cp + fr * sp), k[0] * (sp - fr * cp), -k[1] * (cp + fr * sp), -k[1] * (sp - fr * cp), 0.0)
-    dk = (k[4], k[4], k[5], k[5], 0.0)
-    dc = (k[2], k[2], k[3], k[3], 0.0)
+    w0, w1, w2, w3 = K.force_direction_t(sp, cp, fr, k)
+    wv = (w0, w1, w2, w3, 1.0)
+    dw0, dw1, dw2, dw3 = K.force_direction_dpsi_t(sp, cp, fr, k)
+    dw = (dw0, dw1, dw2, dw3, 0.0)
+    c_p, c_g, k_p, k_g = K.bearing_t(k)
+    dk = (k_p, k_p, k_g, k_g, 0.0)
+    dc = (c_p, c_p, c_g, c_g, 0.0)
     for i in range(5):
         for j in range(10):
             J[i, j] = 0.0
     for j in range(5):
         ddel_q = g[j] + P * pq[j]  # dDelta/dq = dDelta'/dv
         dddel_q = (A + psid * Q) * pq[j] + psid * dPq[j]
-        df_q = ar * ddel_q - r * dbq[j]
-        dF_q = k[8] * dddel_q + kk * df_q
-        dF_v = k[8] * ddel_q
+        df_q = sd * ddel_q + sb * dbq[j]
+        dF_q = K.force_t(dddel_q, df_q, kk, k)  # force_t is linear in (Delta', f)
+        dF_v = dF_ddd * ddel_q
         for i in range(5):
             J[i, j] = -wv[i] * dF_q - F * dw[i] * pq[j]
             J[i, 5 + j] = -wv[i] * dF_v

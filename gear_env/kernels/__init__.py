@@ -5,7 +5,8 @@ module                 holds
 =====================  ======================================================================
 ``kernels.layout``     sizes, Newmark parameters, status codes, column layouts (REC_, ST_, PC_)
 ``kernels.jit``        the ``kernel`` decorators, ``readonly``, ``runtime_int``/``runtime_true``
-``kernels.mesh``       the model: backlash, geometry, excitation, friction, mesh force,
+``kernels.mesh``       the model, written once: backlash, geometry, excitation, friction, mesh
+                       force, the equations of motion in residual form and their derivatives,
                        accelerations, step constants, static equilibrium
 ``kernels.newmark``    one Newmark-beta step: predictor, Newton iteration, step splitting
 ``kernels.drivers``    many steps per call: ``integrate_record``, ``integrate_stats(_batch)``
@@ -131,12 +132,22 @@ from .mesh import (
     FRICTION_SHARPNESS,
     accel,
     backlash,
+    backlash_branch,
+    backlash_inverse,
+    backlash_slopes,
+    bearing_t,
+    deflection_gradient_t,
     deflection_t,
+    eom_residual_t,
     excitation,
+    force_direction_dpsi_t,
+    force_direction_t,
+    force_gradient_t,
     force_t,
     friction_t,
     geometry,
     geometry_t,
+    geometry_taylor_t,
     mesh_state,
     mesh_t,
     psi_t,

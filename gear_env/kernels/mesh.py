@@ -1,23 +1,34 @@
-"""The gear-bearing model: mesh geometry, backlash, excitation, friction, mesh force and
-equations of motion (MODEL.md sec. 3b), as inline numba leaf functions plus their array forms.
+"""The gear-bearing model, written once: mesh geometry, backlash, excitation, friction, mesh
+force and the equations of motion (MODEL.md sec. 3b), as inline numba leaf functions plus their
+array forms.
 
-This is the file to open to change a physics term: the backlash law (:func:`backlash`), the
-geometry of the dynamic model (:func:`geometry_t`, eqs. 5-8), the transmission error and the
-stiffness variation (:func:`excitation`), the mesh deflection and its rate (:func:`deflection_t`),
-the mesh force (:func:`force_t`), the friction extension (:func:`friction_t`), the
-accelerations (:func:`accel`) and the static equilibrium (:func:`static_equilibrium`).
-:func:`mesh_t` gathers the mesh quantities of a state. The Newmark step (``kernels.newmark``:
-the Newton residual, its Jacobian and the Taylor update of the dynamic model) and the SIMD path
-(``gear_env.batch_kernels``) take the deflection, the force and the constants
-(:func:`step_consts`, named by the ``K_*`` indices of ``kernels.layout``) from here. The Newton
-residual writes the bearing and inertia terms of :func:`accel` in residual form,
-``r = a + C v + K q + w F - ext`` with ``w`` the force direction per unit mass; keep the two
-in step (``tests/test_kernels.py`` checks that a converged step satisfies :func:`accel` and the
-reference right-hand side).
+This is the one file to open to change a physics term. Every path takes its arithmetic from the
+leaves here, inlined by numba: the explicit accelerations (:func:`accel`), the Newton residual,
+its Jacobian and the dynamic model's Taylor update (``kernels.newmark``), the SIMD lanes
+(``gear_env.batch_kernels``, which run the same Newton iteration), the static equilibrium
+(:func:`static_equilibrium`) and the tangent map of continuation (``analysis/tangent.py``).
+
+=============================  ======================================================================
+term                           leaves (change them together)
+=============================  ======================================================================
+backlash law (eq. 9)           :func:`backlash`, :func:`backlash_branch`, :func:`backlash_slopes`,
+                               :func:`backlash_inverse`
+dynamic geometry (eqs. 5-8)    :func:`geometry_t`, its first-order update :func:`geometry_taylor_t`
+excitation (TE, stiffness)     :func:`excitation`
+mesh deflection and rate       :func:`deflection_t`, its gradient :func:`deflection_gradient_t`
+mesh force                     :func:`force_t`, its partial derivatives :func:`force_gradient_t`
+friction extension             :func:`friction_t`, the tilt in :func:`force_direction_t`
+bearings, weights, inertia     :func:`bearing_t`, :func:`eom_residual_t`
+equations of motion            :func:`eom_residual_t`: r = a + C v + K q + w F - ext (accel = -r(0))
+=============================  ======================================================================
+
+``tests/test_physics_once.py`` reads the package's source and fails if a constant of the
+equations of motion (``K_IEP`` ... ``K_FS``) is named outside this file or the step constants are
+indexed by position, and checks every path against the reference on random states.
 
 ``gear_env/reference.py`` states the same equations in readable NumPy (a right-hand side for
-SciPy's ``solve_ivp``), written independently from MODEL.md. ``tests/test_kernels.py`` compares
-the geometry and the accelerations term by term and ``tests/test_verification.py`` whole
+SciPy's ``solve_ivp``), written independently from MODEL.md; read it first. ``tests/test_kernels.py``
+compares the geometry and the accelerations term by term and ``tests/test_verification.py`` whole
 trajectories, so a change made here and not there (or the reverse) fails a test.
 
 Plain arrays and floats in, arrays out; everything dimensionless, in natural time
@@ -28,8 +39,6 @@ s = omega_n t; the state is ``x = [X_p, Y_p, X_g, Y_g, U, X_p', Y_p', X_g', Y_g'
 from __future__ import annotations
 
 import math
-
-import numpy as np
 
 from ..params import (
     C_A0,
@@ -56,7 +65,6 @@ from ..params import (
 )
 from .jit import kernel, kernel_inline
 from .layout import (
-    GEO_SIZE,
     K_A0,
     K_BC,
     K_C_G,
@@ -124,12 +132,45 @@ def excitation(phi, c):
 
 @kernel_inline
 def backlash(delta, bd):
-    """Dead-zone function f(Delta; B_d) (eq. 9) and its region (+1 drive, 0 apart, -1 back)."""
+    """Dead-zone function f(Delta; B_d) (eq. 9) and its region (+1 drive, 0 apart, -1 back).
+
+    The backlash law is these four functions: this one, :func:`backlash_branch` (f on a given
+    branch), :func:`backlash_slopes` (its derivatives, for the Newton and tangent Jacobians) and
+    :func:`backlash_inverse` (for the static equilibrium); change them together
+    (``tests/test_physics_once.py`` checks that they agree). The branches are written out here
+    rather than taken from :func:`backlash_branch`: this function is inlined into every Newton
+    iteration, and three nested inlines per copy made the first compile ~20 % longer.
+    """
     if delta >= bd:
         return delta - bd, 1
     if delta <= -bd:
         return delta + bd, -1
     return 0.0, 0
+
+
+@kernel_inline
+def backlash_branch(delta, bd, region):
+    """f(Delta; B_d) on the branch ``region`` (+1: Delta - B_d, -1: Delta + B_d, 0: 0), also
+    outside that branch's range of Delta (the one-sided continuation the tangent map needs)."""
+    if region == 0:
+        return 0.0
+    return delta - region * bd
+
+
+@kernel_inline
+def backlash_slopes(delta, bd, region):
+    """Partial derivatives (df/dDelta, df/dB_d) of the dead-zone function :func:`backlash` on the
+    branch ``region`` (what the Newton Jacobian differentiates; its one-sided derivative at a kink)."""
+    if region == 0:
+        return 0.0, 0.0
+    return 1.0, -float(region)
+
+
+@kernel_inline
+def backlash_inverse(f, bd):
+    """The drive-side deflection Delta >= B_d at which :func:`backlash` gives f >= 0 (used by
+    :func:`static_equilibrium`)."""
+    return bd + f
 
 
 @kernel_inline
@@ -180,6 +221,16 @@ def geometry_t(q0, q1, q2, q3, k):
 
 
 @kernel_inline
+def geometry_taylor_t(bd, sp, cp, db0, db1, dp0, dp1, ex, ey, scale):
+    """First-order update of the dynamic geometry (:func:`geometry_t`) when the pinion moves by
+    scale (ex, ey) relative to the gear: returns (B_d, sin psi, cos psi) at the new positions
+    from those and the derivatives (dB/dX_p, dB/dY_p, dpsi/dX_p, dpsi/dY_p) at the old ones."""
+    dpsi = scale * (dp0 * ex + dp1 * ey)
+    bd1 = bd + scale * (db0 * ex + db1 * ey)
+    return bd1, sp + cp * dpsi, cp - sp * dpsi
+
+
+@kernel_inline
 def mesh_t(s, ce, se, omega, k, dynamic):
     """Mesh quantities of a state tuple s = (q0..q4, v0..v4, ...) at one instant.
 
@@ -218,10 +269,25 @@ def deflection_t(s, sp, cp, dp0, dp1, ce, se, omega, k, dynamic):
 
 
 @kernel_inline
+def deflection_gradient_t(sp, cp):
+    """g = dDelta/dq = dDelta'/dv on (X_p, Y_p, X_g, Y_g, U) of :func:`deflection_t` with psi
+    frozen (the line of action; the psi-dependence is left to ``analysis/tangent.py``)."""
+    return sp, -cp, -sp, cp, 1.0
+
+
+@kernel_inline
 def force_t(ddelta, f, kk, k):
     """Mesh force Fhat = 2 xi_m Delta' + (1 + kappa cos(phi + phi_k)) f(Delta) (MODEL.md sec. 3, natural
     time); ``kk`` is the stiffness factor, ``f`` the dead-zone function :func:`backlash`."""
     return k[K_XIM2] * ddelta + kk * f
+
+
+@kernel_inline
+def force_gradient_t(delta, bd, region, kk, k):
+    """Partial derivatives of the mesh force :func:`force_t` on the backlash branch ``region``:
+    (dF/dDelta', dF/dDelta, dF/dB_d), from :func:`backlash_slopes`."""
+    sd, sb = backlash_slopes(delta, bd, region)
+    return k[K_XIM2], kk * sd, kk * sb
 
 
 FRICTION_SHARPNESS = 10.0
@@ -237,6 +303,70 @@ def friction_t(ce, se, k):
     if mu == 0.0:
         return 0.0
     return mu * math.tanh(FRICTION_SHARPNESS * (se * k[K_COS_PHI_E] - ce * k[K_SIN_PHI_E]))
+
+
+# ---- the equations of motion -----------------------------------------------------------------
+# Written once, in residual form r(a, q, v) = a + C v + K q + w F - ext = 0 (per unit mass, natural
+# time): :func:`accel` is a = -r(0, q, v), the Newton iteration of ``kernels.newmark`` drives r to
+# zero with the Jacobian assembled from :func:`bearing_t`, :func:`deflection_gradient_t`,
+# :func:`force_gradient_t` and :func:`force_direction_t`, and :func:`static_equilibrium` solves
+# r(0, q, 0) = 0. The SIMD path (``gear_env.batch_kernels``) runs the same Newton iteration.
+
+
+@kernel_inline
+def bearing_t(k):
+    """Bearing damping and stiffness per unit mass (the diagonal C and K of the equations of
+    motion, natural time): (pinion damping, gear damping, pinion stiffness, gear stiffness),
+    each acting on X and Y; U has none."""
+    return k[K_C_P], k[K_C_G], k[K_K_P], k[K_K_G]
+
+
+@kernel_inline
+def force_direction_t(sp, cp, fr, k):
+    """w = M^-1 g_F: the generalised force of a unit mesh force on (X_p, Y_p, X_g, Y_g) per unit
+    mass (on U it is 1). Along the line of action (sin psi, -cos psi) on the pinion and opposite
+    on the gear, tilted by the friction extension's fr = mu s(phi) (:func:`friction_t`)."""
+    iep = k[K_IEP]
+    ieg = k[K_IEG]
+    return (
+        (sp - fr * cp) * iep,
+        -(cp + fr * sp) * iep,
+        -(sp - fr * cp) * ieg,
+        (cp + fr * sp) * ieg,
+    )
+
+
+@kernel_inline
+def force_direction_dpsi_t(sp, cp, fr, k):
+    """dw/dpsi: derivative of :func:`force_direction_t` with respect to the meshing angle psi
+    (friction factor fr held fixed)."""
+    iep = k[K_IEP]
+    ieg = k[K_IEG]
+    return (
+        (cp + fr * sp) * iep,
+        (sp - fr * cp) * iep,
+        -(cp + fr * sp) * ieg,
+        -(sp - fr * cp) * ieg,
+    )
+
+
+@kernel_inline
+def eom_residual_t(acc, state, force, direction, k):
+    """Residual of the equations of motion (MODEL.md sec. 3b) r = a + C v + K q + w F - ext.
+
+    ``acc`` = (a_0..a_4), ``state`` = (q_0..q_4, v_0..v_4, ...), ``force`` the mesh force Fhat
+    (:func:`force_t`), ``direction`` = w (:func:`force_direction_t`). Bearings (:func:`bearing_t`)
+    on X and Y, the weights ``ext`` on Y, and on U: r_4 = a_4 + F - F_s. Returns (r_0..r_4).
+    """
+    c_p, c_g, k_p, k_g = bearing_t(k)
+    w0, w1, w2, w3 = direction
+    return (
+        acc[0] + c_p * state[5] + k_p * state[0] + w0 * force,
+        acc[1] + c_p * state[6] + k_p * state[1] + w1 * force - k[K_EXT_P],
+        acc[2] + c_g * state[7] + k_g * state[2] + w2 * force,
+        acc[3] + c_g * state[8] + k_g * state[3] + w3 * force - k[K_EXT_G],
+        acc[4] + force - k[K_FS],
+    )
 
 
 @kernel_inline
@@ -298,14 +428,12 @@ def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
     k = step_consts(c)
     delta, ddelta, bd, f, region = mesh_state(q, v, ce, se, omega, c, dynamic, geo)
     F = force_t(ddelta, f, kk, k)
-    sp = geo[12]
-    cp = geo[13]
     fr = friction_t(ce, se, k)  # [friction extension] 0 unless GearParams.friction > 0
-    a[0] = -(k[K_C_P] * v[0] + k[K_K_P] * q[0] + F * (sp - fr * cp) * k[K_IEP])
-    a[1] = -(k[K_C_P] * v[1] + k[K_K_P] * q[1] - F * (cp + fr * sp) * k[K_IEP]) + k[K_EXT_P]
-    a[2] = -(k[K_C_G] * v[2] + k[K_K_G] * q[2] - F * (sp - fr * cp) * k[K_IEG])
-    a[3] = -(k[K_C_G] * v[3] + k[K_K_G] * q[3] + F * (cp + fr * sp) * k[K_IEG]) + k[K_EXT_G]
-    a[4] = k[K_FS] - F
+    w = force_direction_t(geo[12], geo[13], fr, k)
+    s = (q[0], q[1], q[2], q[3], q[4], v[0], v[1], v[2], v[3], v[4])
+    r = eom_residual_t((0.0, 0.0, 0.0, 0.0, 0.0), s, F, w, k)  # a = -r(0, q, v)
+    for i in range(5):
+        a[i] = -r[i]
     return F
 
 
@@ -313,30 +441,34 @@ def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
 def static_equilibrium(c, dynamic, phi0, out):
     """Drive-side static equilibrium with kappa = 0 and the TE frozen at phase phi0 (A10).
 
-    Writes positions and zero velocities into ``out`` (10). Bearings deflect by the static mesh
-    force F_s along the line of action (and by gravity, if set); U closes Delta = B_d + F_s.
+    Writes positions and zero velocities into ``out`` (10). Solves the equations of motion at
+    rest, r(0, q, 0) = 0 (:func:`eom_residual_t`): its U row gives F = F_s; for that force the
+    bearing rows are linear in the bearing positions (q_i = -r_i(q = 0) / K_i), and U closes
+    Delta = B_d + F_s (:func:`backlash_inverse`). The dynamic model's geometry depends on the
+    positions, so the solve repeats until psi and B_d no longer change.
     """
-    geo = np.zeros(GEO_SIZE)
-    q = np.zeros(5)
-    Fs = c[C_FS]
-    lam_p = c[C_EPS_P] * c[C_SIG_P] ** 2
-    lam_g = c[C_EPS_G] * c[C_SIG_G] ** 2
-    psi = c[C_ALPHA0]
-    bd = c[C_BC]
+    k = step_consts(c)
+    ce, se, _kk = excitation(phi0, c)
+    fr = friction_t(ce, se, k)
+    Fs = k[K_FS]
+    _c_p, _c_g, k_p, k_g = bearing_t(k)
+    rest = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    sp = k[K_SIN_A0]
+    cp = k[K_COS_A0]
+    bd = k[K_BC]
+    s = rest
     for _it in range(100):
-        sp = math.sin(psi)
-        cp = math.cos(psi)
-        q[0] = -sp * Fs / lam_p
-        q[1] = cp * Fs / lam_p - c[C_GP] / lam_p
-        q[2] = sp * Fs / lam_g
-        q[3] = -cp * Fs / lam_g - c[C_GG] / lam_g
-        trans = (q[0] - q[2]) * sp - (q[1] - q[3]) * cp
-        q[4] = bd + Fs + c[C_E1] * math.cos(phi0 + c[C_PHI_E]) - trans
-        geometry(q, c, dynamic, geo)
-        if abs(geo[0] - psi) < 1e-15 and abs(geo[1] - bd) < 1e-15:
+        r = eom_residual_t(rest, rest, Fs, force_direction_t(sp, cp, fr, k), k)
+        s = (-r[0] / k_p, -r[1] / k_p, -r[2] / k_g, -r[3] / k_g, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        delta0, _dd = deflection_t(s, sp, cp, 0.0, 0.0, ce, se, 0.0, k, 0)  # Delta with U = 0
+        s = (s[0], s[1], s[2], s[3], backlash_inverse(Fs, bd) - delta0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        if dynamic == 0:
             break
-        psi = geo[0]
-        bd = geo[1]
-    for i in range(5):
-        out[i] = q[i]
-        out[5 + i] = 0.0
+        _db0, _db1, _dp0, _dp1, bd1, sp1, cp1 = geometry_t(s[0], s[1], s[2], s[3], k)
+        if abs(sp1 - sp) < 1e-15 and abs(cp1 - cp) < 1e-15 and abs(bd1 - bd) < 1e-15:
+            break
+        sp = sp1
+        cp = cp1
+        bd = bd1
+    for i in range(10):
+        out[i] = s[i]

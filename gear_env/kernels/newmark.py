@@ -31,26 +31,23 @@ from __future__ import annotations
 import math
 
 from .jit import kernel, kernel_inline, runtime_int
-from .layout import (
-    BETA,
-    DIVERGENCE_LIMIT,
-    GAMMA,
-    K_C_G,
-    K_C_P,
-    K_EXT_G,
-    K_EXT_P,
-    K_FS,
-    K_IEG,
-    K_IEP,
-    K_K_G,
-    K_K_P,
-    K_XIM2,
-    NDOF,
-    NEWTON_FAILED,
-    NSTATE,
-    OK,
+from .layout import BETA, DIVERGENCE_LIMIT, GAMMA, NDOF, NEWTON_FAILED, NSTATE, OK
+from .mesh import (
+    backlash,
+    bearing_t,
+    deflection_gradient_t,
+    deflection_t,
+    eom_residual_t,
+    excitation,
+    force_direction_t,
+    force_gradient_t,
+    force_t,
+    friction_t,
+    geometry_taylor_t,
+    mesh_t,
+    psi_t,
+    step_consts,
 )
-from .mesh import backlash, deflection_t, excitation, force_t, friction_t, mesh_t, psi_t, step_consts
 
 
 @kernel_inline
@@ -60,8 +57,9 @@ def step_coeffs(h, k):
     gear bearings). Loop-invariant while omega is constant."""
     bh2 = BETA * h * h
     gh = GAMMA * h
-    d0 = 1.0 + gh * k[K_C_P] + bh2 * k[K_K_P]
-    d2 = 1.0 + gh * k[K_C_G] + bh2 * k[K_K_G]
+    c_p, c_g, k_p, k_g = bearing_t(k)  # dr/da = I + gh dr/dv + bh2 dr/dq: its diagonal
+    d0 = 1.0 + gh * c_p + bh2 * k_p
+    d2 = 1.0 + gh * c_g + bh2 * k_g
     q = 1.0 / (d0 * d2)  # one division for both inverses (recomputed every step of a ramp)
     return h, bh2, gh, h * h * (0.5 - BETA), h * (1.0 - GAMMA), q * d2, q * d0
 
@@ -123,33 +121,27 @@ def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_o
     ``friction=False`` the friction extension is ignored (no tanh call; the batch kernel redoes
     the steps of systems with friction).
     """
-    iep, ieg, xim2, Fs = k[K_IEP], k[K_IEG], k[K_XIM2], k[K_FS]
-    c0, c2, k0, k2, ext1, ext3 = k[K_C_P], k[K_C_G], k[K_K_P], k[K_K_G], k[K_EXT_P], k[K_EXT_G]
     h, bh2, gh, hh, h1, idd0, idd2 = hc
     a0, a1, a2, a3, a4 = a
     delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
     F = force_t(ddelta, f, kk, k)
     fr = friction_t(ce, se, k) if friction else 0.0  # [friction extension] tilts the force off the LOA
-    cd = gh * xim2
-    w0 = (sp - fr * cp) * iep
-    w1 = -(cp + fr * sp) * iep
-    w2 = -(sp - fr * cp) * ieg
-    w3 = (cp + fr * sp) * ieg
-    # residual r = a + C v + K q + w F - ext
-    r0 = a0 + c0 * t[5] + k0 * t[0] + w0 * F
-    r1 = a1 + c0 * t[6] + k0 * t[1] + w1 * F - ext1
-    r2 = a2 + c2 * t[7] + k2 * t[2] + w2 * F
-    r3 = a3 + c2 * t[8] + k2 * t[3] + w3 * F - ext3
-    r4 = a4 + F - Fs
-    # u = dF/da = bh2 kk df/dq + gh 2 xi_m g, g = dDelta/dq (force direction frozen)
-    cs = bh2 * kk if region != 0 else 0.0
-    rr = cs * float(region)
-    cg = cd + cs
-    u0 = cg * sp - rr * db0
-    u1 = -cg * cp - rr * db1
-    u2 = -cg * sp + rr * db0
-    u3 = cg * cp + rr * db1
-    u4 = cg
+    w = force_direction_t(sp, cp, fr, k)
+    w0, w1, w2, w3 = w
+    # the residual of the equations of motion at the corrected state t (kernels.mesh)
+    r0, r1, r2, r3, r4 = eom_residual_t(a, t, F, w, k)
+    # Jacobian dr/da = D + w u^T: D = I + gh C + bh2 K (step_coeffs), and u = dF/da = gh dF/dv +
+    # bh2 dF/dq, with dF/dv = dF/dDelta' g and dF/dq = dF/dDelta g + dF/dB_d dB_d/dq (g = dDelta/dq,
+    # force direction and psi frozen within the step; dB_d/dU = 0)
+    dF_ddd, dF_dd, dF_dbd = force_gradient_t(delta, bd, region, kk, k)
+    g0, g1, g2, g3, g4 = deflection_gradient_t(sp, cp)
+    cg = gh * dF_ddd + bh2 * dF_dd
+    cb = bh2 * dF_dbd
+    u0 = cg * g0 + cb * db0
+    u1 = cg * g1 + cb * db1
+    u2 = cg * g2 - cb * db0
+    u3 = cg * g3 - cb * db1
+    u4 = cg * g4
     # Sherman-Morrison: (D + w u^T) d = -r, D = diag(dd0, dd0, dd2, dd2, 1)
     y0 = -r0 * idd0
     y1 = -r1 * idd0
@@ -181,10 +173,7 @@ def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_o
         # first-order Taylor expansion of eqs. (5)-(8) about the previous iterate (the
         # remainder, curvature of B_d(q) ~1e-3 per b0 times |dq|^2 <= 1e-8, is below 1e-11),
         # which saves the square roots and divisions of a second geometry evaluation.
-        dpsi = bh2 * (dp0 * (e0 - e2) + dp1 * (e1 - e3))
-        bd1 = bd + bh2 * (db0 * (e0 - e2) + db1 * (e1 - e3))
-        sp1 = sp + cp * dpsi
-        cp1 = cp - sp * dpsi
+        bd1, sp1, cp1 = geometry_taylor_t(bd, sp, cp, db0, db1, dp0, dp1, e0 - e2, e1 - e3, bh2)
         delta1, ddelta1 = deflection_t(t, sp1, cp1, dp0, dp1, ce, se, w_b, k, dynamic)
         f1, region1 = backlash(delta1, bd1)
         if region1 == region:
