@@ -48,6 +48,7 @@ class ScriptedPolicy(BasePolicy):
         self.omega_max = float(cp["omega_max"])
         self.max_domega = float(cp["max_domega"])
         self.action_mode = str(cp["action_mode"])
+        self.reference_filter = float(cp.get("reference_filter", 1.0))
         self.max_steps = int(cp["max_steps"])
         self.has_demand = bool(cp.get("has_demand", False))
 
@@ -62,7 +63,9 @@ class ScriptedPolicy(BasePolicy):
         target = np.clip(np.asarray(target, float), self.omega_min, self.omega_max)
         if self.action_mode == "delta":
             a = (target - omega) / self.max_domega
-        else:  # target mode: the environment rate-limits the move itself
+        else:  # target mode: the environment filters and rate-limits the move itself
+            if self.reference_filter != 1.0:  # the set-point whose filtered step lands on the target
+                target = np.clip(omega + (target - omega) / self.reference_filter, self.omega_min, self.omega_max)
             a = 2.0 * (target - self.omega_min) / (self.omega_max - self.omega_min) - 1.0
         return np.clip(a, -1.0, 1.0)
 

@@ -142,13 +142,15 @@ def control_parameters(cfg: Any) -> dict[str, Any]:
 
     Returns ``omega_min``, ``omega_max`` (observation[0] maps [omega_min, omega_max] linearly to
     [-1, 1]), ``max_domega`` (largest change of omega per step; action 1 in delta mode),
-    ``action_mode`` ("delta" or "target") and ``max_steps`` (episode length)."""
+    ``action_mode`` ("delta" or "target"), ``reference_filter`` (target mode: fraction of the set-point
+    error closed per step before the rate limit) and ``max_steps`` (episode length)."""
     c = make_config(GEAR_ENV_ID, cfg)
     return {
         "omega_min": float(c.omega_min),
         "omega_max": float(c.omega_max),
         "max_domega": float(c.max_domega),
         "action_mode": str(c.action_mode),
+        "reference_filter": float(c.reference_filter),
         "max_steps": int(c.max_steps),
         "has_demand": c.demand is not None,
     }

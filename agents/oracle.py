@@ -56,7 +56,13 @@ def reward_map(
     cfg = make_config(GEAR_ENV_ID, config)
     # the map is of the undisturbed plant: no randomisation, no demand (as steady_reward_map does)
     base = cfg.replace(
-        randomize_params=False, demand=None, throughput="all", plant_family=None, duty_cycle=None, action_mode="delta"
+        randomize_params=False,
+        demand=None,
+        throughput="all",
+        plant_family=None,
+        duty_cycle=None,
+        action_mode="delta",
+        reference_filter=1.0,
     )
     d = float(spacing) if spacing is not None else base.max_domega / 2.0
     if not np.isfinite(d) or d <= 0:

@@ -1,6 +1,7 @@
 """The shipped training configuration of a task, over several training seeds, scored against the oracle.
 
 Run:  python benchmarks/pretrained_seeds.py --env GearSpeed-v1 --seeds 0 1 2 [--timesteps N] [--json out.json]
+      (or one seed per process with --json each, then --combine a.json b.json c.json)
 
 For each seed this trains exactly what ``gear-env train --env ID --hyperparams agents/hyperparams/ppo.yml
 --seed S`` trains (the same command-line parser and ``agents.ppo.train``; ``--timesteps`` overrides the
@@ -46,6 +47,33 @@ def train_shipped(env_id: str, seed: int, out: Path, hyperparams: Path, timestep
     return {"wall_s": wall, "cpu_s": cpu, "load_start": load0, "load_end": os.getloadavg(), "steps": opts.timesteps}
 
 
+def combine(paths: Sequence[str], json_out: str | None, iqm_ci) -> int:
+    """Merge the JSON outputs of runs made in parallel (same task, episodes and baselines) and print the IQM."""
+    parts = [json.loads(Path(p).read_text(encoding="utf-8")) for p in paths]
+    keys = ("env", "eval_seed", "episodes", "model")
+    for p, d in zip(paths, parts):
+        if any(d[k] != parts[0][k] for k in keys) or d["baselines"] != parts[0]["baselines"]:
+            raise SystemExit(f"{p}: not the same evaluation as {paths[0]} ({', '.join(keys)}, baselines)")
+    out = {**parts[0], "runs": [r for d in parts for r in d["runs"]]}
+    o = out["baselines"]["oracle"]["return_mean"]
+    scores = np.array([np.asarray(r["returns"]) / o for r in out["runs"]])
+    for r in out["runs"]:
+        print(
+            f"seed {r['seed']}: {r['pct_of_oracle']:.1f} % of the oracle, "
+            f"{r['wall_s']:.0f} s wall, {r['cpu_s']:.0f} s CPU"
+        )
+    m, lo, hi = iqm_ci(scores)
+    out["iqm_pct"], out["iqm_ci95_pct"] = 100 * m, [100 * lo, 100 * hi]
+    print(
+        f"IQM {100 * m:.1f} % of the oracle, 95 % bootstrap CI [{100 * lo:.1f}, {100 * hi:.1f}] over {len(scores)} runs"
+    )
+    if json_out:
+        from gear_env.io import atomic_write_text
+
+        atomic_write_text(json_out, json.dumps(out, indent=1))
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--env", default="GearSpeed-v1")
@@ -54,12 +82,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--hyperparams", type=Path, default=ROOT / "agents" / "hyperparams" / "ppo.yml")
     ap.add_argument("--runs", type=Path, default=None, help="keep the run folders under DIR (default: a temp dir)")
     ap.add_argument("--model", choices=("best", "final"), default="best")
+    ap.add_argument("--reuse", action="store_true", help="evaluate finished runs found under --runs, train the rest")
     ap.add_argument("--eval-seed", type=int, default=9001)
     ap.add_argument("--episodes", type=int, default=20)
     ap.add_argument("--json", metavar="PATH")
+    ap.add_argument(
+        "--combine", nargs="+", metavar="JSON", help="no training: merge the --json outputs of runs made in parallel"
+    )
     args = ap.parse_args(argv)
 
     from stock_ppo import iqm_ci  # benchmarks/ is the script's folder
+
+    if args.combine:
+        return combine(args.combine, args.json, iqm_ci)
 
     from agents.registry import resolve_policy
     from gear_env.env_config import task_config
@@ -87,7 +122,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         parent = args.runs if args.runs is not None else Path(tmp)
         for s in args.seeds:
             run_dir = parent / f"{args.env}_seed{s}"
-            t = train_shipped(args.env, s, run_dir, args.hyperparams, args.timesteps)
+            done = run_dir / "metrics.json"
+            if args.reuse and done.is_file() and json.loads(done.read_text(encoding="utf-8"))["summary"]["finished"]:
+                summ = json.loads(done.read_text(encoding="utf-8"))["summary"]  # a finished run: evaluate only
+                t = {"wall_s": summ["wall_seconds"], "cpu_s": float("nan"), "load_start": [float("nan")] * 3}
+                t.update(load_end=t["load_start"], steps=summ["timesteps"], reused=True)
+            else:
+                t = train_shipped(args.env, s, run_dir, args.hyperparams, args.timesteps)
             model = run_dir / ("best_model.zip" if args.model == "best" else "model.zip")
             pol = resolve_policy(str(model), cfg, env_id=args.env)
             rep = evaluate_policies({"run": pol}, cfg, episodes=args.episodes, seed=args.eval_seed)

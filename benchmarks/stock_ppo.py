@@ -1,6 +1,7 @@
 """Stock stable-baselines3 PPO, as a new user would run it, on a GearSpeed task; scored against the oracle.
 
 Run:  python benchmarks/stock_ppo.py --env GearSpeed-v1 --seeds 0 1 [--timesteps 200000] [--json out.json]
+      [--set reference_filter=0.1] [--diagnose]
 
 What "stock" means here: ``PPO("MlpPolicy", venv)`` with every hyper-parameter at SB3's default,
 ``venv = VecNormalize(make_vec_env(ENV_ID, n_envs=8, seed=seed))``, 200k steps, one torch thread,
@@ -9,7 +10,9 @@ evaluation episodes (seeds 100-119 by default, never used in training: training 
 with seed, seed + 1, ...), and so do the oracle and the fixed-best schedule, through
 ``gear_env.evaluation.evaluate_policies``. Printed: each run's return as % of the oracle, the
 interquartile mean over runs x episodes of the oracle-normalised return and its 95 % bootstrap
-confidence interval (rliable's method: resample runs, then episodes), and the wall time.
+confidence interval (rliable's method: resample runs, then episodes), and the wall time. ``--set KEY=JSON``
+changes a setting of the task (an ablation; the registered task otherwise); ``--diagnose`` prints, after each
+rollout, the policy's std (in action units) and the quantiles of omega in the settled phase (steps > 30).
 """
 
 from __future__ import annotations
@@ -53,8 +56,36 @@ class _Frozen:
         return self.model.predict(obs, state=state, episode_start=episode_start, deterministic=deterministic)
 
 
-def train_stock(env_id: str, seed: int, timesteps: int):
-    """Train stock PPO (SB3 defaults, 8 envs via make_vec_env, VecNormalize); returns (policy, wall s)."""
+def _diagnosis_callback(log: list, after_step: int = 30):
+    """SB3 callback: after each rollout, append the policy's std (action units) and the 5/25/50/75/95 %
+    quantiles of omega over the rollout's steps past ``after_step`` of their episode (the settled phase)."""
+    import torch
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Diagnose(BaseCallback):
+        def _on_training_start(self) -> None:
+            self.omegas: list[float] = []
+
+        def _on_step(self) -> bool:
+            self.omegas += [i["omega"] for i in self.locals["infos"] if i.get("step", 0) > after_step]
+            return True
+
+        def _on_rollout_end(self) -> None:
+            w = np.asarray(self.omegas)
+            self.omegas = []
+            row = {"steps": self.num_timesteps, "std": float(torch.exp(self.model.policy.log_std.detach()).mean())}
+            row["omega_q"] = np.percentile(w, [5, 25, 50, 75, 95]).round(3).tolist() if len(w) else []
+            log.append(row)
+            print(f"  {row['steps']:>7,} steps: std {row['std']:.3f}, settled omega quantiles {row['omega_q']}")
+
+    return Diagnose()
+
+
+def train_stock(env_id: str, seed: int, timesteps: int, env_kwargs: dict | None = None, log: list | None = None):
+    """Train stock PPO (SB3 defaults, 8 envs via make_vec_env, VecNormalize); returns (policy, wall s).
+
+    ``env_kwargs``: settings passed to ``gym.make`` (default none: the registered task); ``log``: if a
+    list, the per-rollout diagnosis (policy std, settled omega quantiles) is appended to it."""
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env
@@ -64,9 +95,9 @@ def train_stock(env_id: str, seed: int, timesteps: int):
 
     torch.set_num_threads(1)
     t0 = time.perf_counter()
-    venv = VecNormalize(make_vec_env(env_id, n_envs=8, seed=seed))
+    venv = VecNormalize(make_vec_env(env_id, n_envs=8, seed=seed, env_kwargs=env_kwargs))
     model = PPO("MlpPolicy", venv, seed=seed, device="cpu")
-    model.learn(timesteps)
+    model.learn(timesteps, callback=None if log is None else _diagnosis_callback(log))
     venv.training = False
     venv.norm_reward = False
     return _Frozen(model, venv), time.perf_counter() - t0
@@ -79,14 +110,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--timesteps", type=int, default=200_000)
     ap.add_argument("--eval-seed", type=int, default=100)
     ap.add_argument("--episodes", type=int, default=20)
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON", help="environment setting (repeatable)")
+    ap.add_argument("--diagnose", action="store_true", help="print the policy std and settled omega per rollout")
     ap.add_argument("--json", metavar="PATH")
     args = ap.parse_args(argv)
+    settings = {}
+    for kv in args.set:
+        k, _, v = kv.partition("=")
+        settings[k.strip()] = json.loads(v)
 
     from agents.registry import resolve_policy
     from gear_env.env_config import task_config
     from gear_env.evaluation import evaluate_policies
 
-    cfg = task_config(args.env)
+    cfg = task_config(args.env, settings)
     base = evaluate_policies(
         {"oracle": resolve_policy("oracle", cfg), "fixed-best": resolve_policy("fixed-best", cfg)},
         cfg,
@@ -98,6 +135,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     out = {
         "env": args.env,
         "timesteps": args.timesteps,
+        "settings": settings,
         "oracle_mean": float(oracle.mean()),
         "fixed_best_mean": float(fixed.mean()),
         "runs": [],
@@ -108,7 +146,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     scores = []
     for s in args.seeds:
-        pol, wall = train_stock(args.env, s, args.timesteps)
+        log: list | None = [] if args.diagnose else None
+        pol, wall = train_stock(args.env, s, args.timesteps, settings, log)
         rep = evaluate_policies({"stock": pol}, cfg, episodes=args.episodes, seed=args.eval_seed)
         r = np.array([e.ret for e in rep.episodes["stock"]])
         scores.append(r / oracle.mean())
@@ -119,6 +158,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "returns": r.tolist(),
                 "pct_of_oracle": 100 * r.mean() / oracle.mean(),
                 "settled_omega": [e.settled_omega for e in rep.episodes["stock"]],
+                "diagnosis": log,
             }
         )
         print(f"seed {s}: {r.mean():.2f} = {100 * r.mean() / oracle.mean():.1f} % of the oracle, {wall:.0f} s wall")

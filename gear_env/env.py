@@ -67,7 +67,10 @@ class GearSpeedEnv(gym.Env):
 
     ``Box(-1, 1, (1,), float32)``. ``action_mode="delta"`` (default): new omega = omega +
     a * max_domega. ``action_mode="target"``: target omega = omega_min + (a + 1)/2 (omega_max -
-    omega_min), approached at most max_domega per step. Always clipped to [omega_min, omega_max].
+    omega_min), approached at most max_domega per step; with ``reference_filter`` = alpha < 1 the
+    drive's reference first closes the fraction alpha of the error (a first-order filter):
+    new omega = omega + clip(alpha (target - omega), +-max_domega). Always clipped to
+    [omega_min, omega_max].
     NaN/inf or a wrong shape raise ``ValueError``.
 
     ## Observation Space

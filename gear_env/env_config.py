@@ -138,6 +138,8 @@ class GearSpeedConfig(TableConfig):
         max_domega: largest change of omega in one step, in (0, omega_max - omega_min].
         action_mode: ``"delta"`` (action = change of omega in units of max_domega) or ``"target"``
             (action maps linearly onto [omega_min, omega_max]; the change is rate-limited).
+        reference_filter: target mode: the fraction alpha in (0, 1] of the set-point error the drive's
+            reference closes per step before the rate limit (first-order filter; 1 = none, the default).
 
     Episode:
         max_steps: steps per episode (then truncated), in [1, 1e6].

@@ -370,6 +370,9 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("omega_max", 3.0, _omega_max, "(omega_min, 20]", "largest admissible omega", kernel=float),
     Setting("max_domega", 0.05, _max_domega, "(0, max-min]", "largest omega change per step", kernel=float),
     Setting("action_mode", "delta", choice(*ACTION_MODES), '"delta", "target"', "meaning of the action"),
+    Setting("reference_filter", 1.0, real(0.0, 1.0, lo_open=True), "(0, 1]",
+            "target mode: fraction of the set-point error the drive's reference closes per step (first-order "
+            "filter before the rate limit; 1: none; no effect in delta mode)", kernel=float),
     # episode
     Setting("max_steps", 200, integer(1, 1_000_000), "[1, 1e6]", "episode length (truncation)", kernel=float),
     Setting("initial_omega", None, _initial_omega, "None, number, (lo, hi)",

@@ -217,6 +217,9 @@ class SpeedSchedule:
         obs = np.asarray(obs, float).reshape(-1, np.shape(obs)[-1])
         target = np.asarray(self.omega_at(np.asarray(t, float) + 1.0), float).reshape(-1)
         if cfg.action_mode == "target":
+            if cfg.reference_filter != 1.0:  # the set-point whose filtered step lands on the target
+                w = lo + 0.5 * (obs[:, 0] + 1.0) * (hi - lo)
+                target = np.clip(w + (target - w) / cfg.reference_filter, lo, hi)
             a = 2.0 * (target - lo) / (hi - lo) - 1.0
         else:
             w = lo + 0.5 * (obs[:, 0] + 1.0) * (hi - lo)
