@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from gear_env.steady_map import undisturbed_config
+
 from .baselines import ScriptedPolicy
 from .envs import GEAR_ENV_ID, config_to_dict, make_config
 
@@ -55,15 +57,7 @@ def reward_map(
     and on disk (``$GEAR_ENV_CACHE`` or ``~/.cache/gear-env``, keyed by the SHA-256 of the config)."""
     cfg = make_config(GEAR_ENV_ID, config)
     # the map is of the undisturbed plant: no randomisation, no demand (as steady_reward_map does)
-    base = cfg.replace(
-        randomize_params=False,
-        demand=None,
-        throughput="all",
-        plant_family=None,
-        duty_cycle=None,
-        action_mode="delta",
-        reference_filter=1.0,
-    )
+    base = undisturbed_config(cfg)
     d = float(spacing) if spacing is not None else base.max_domega / 2.0
     if not np.isfinite(d) or d <= 0:
         raise ValueError(f"spacing must be a positive number, got {spacing!r}")

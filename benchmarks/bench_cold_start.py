@@ -26,31 +26,22 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 
+_ENV_CHILD = r"""
+import time
+t0 = time.perf_counter()
+import gymnasium as gym
+import gear_env
+t1 = time.perf_counter()
+e = gym.make("ENV_ID")
+e.reset(seed=0)
+e.step(e.action_space.sample())
+t2 = time.perf_counter()
+print(f"{t1 - t0:.3f} {t2 - t1:.3f}")
+"""
+
 _CHILDREN = {
-    "env": r"""
-import time
-t0 = time.perf_counter()
-import gymnasium as gym
-import gear_env
-t1 = time.perf_counter()
-e = gym.make("GearSpeed-v0")
-e.reset(seed=0)
-e.step(e.action_space.sample())
-t2 = time.perf_counter()
-print(f"{t1 - t0:.3f} {t2 - t1:.3f}")
-""",
-    "v1": r"""
-import time
-t0 = time.perf_counter()
-import gymnasium as gym
-import gear_env
-t1 = time.perf_counter()
-e = gym.make("GearSpeed-v1")
-e.reset(seed=0)
-e.step(e.action_space.sample())
-t2 = time.perf_counter()
-print(f"{t1 - t0:.3f} {t2 - t1:.3f}")
-""",
+    "env": _ENV_CHILD.replace("ENV_ID", "GearSpeed-v0"),
+    "v1": _ENV_CHILD.replace("ENV_ID", "GearSpeed-v1"),
     "sim": r"""
 import time
 t0 = time.perf_counter()

@@ -68,6 +68,21 @@ class SteadyRewardMap:
         return "\n".join(lines)
 
 
+def undisturbed_config(cfg: GearSpeedConfig) -> GearSpeedConfig:
+    """``cfg`` as a steady map sees it: the undisturbed plant (no randomisation, demand, plant family or
+    duty cycle; all throughput paid) under delta actions without a reference filter, so that every task
+    built on the same physics and weights shares one map."""
+    return cfg.replace(
+        randomize_params=False,
+        demand=None,
+        throughput="all",
+        plant_family=None,
+        duty_cycle=None,
+        action_mode="delta",
+        reference_filter=1.0,
+    )
+
+
 def steady_reward_map(
     config: GearSpeedConfig | Mapping[str, Any] | None = None,
     omegas: Sequence[float] | np.ndarray | None = None,
@@ -90,16 +105,7 @@ def steady_reward_map(
     Returns:
         :class:`SteadyRewardMap`.
     """
-    cfg = GearSpeedConfig.from_kwargs(config)
-    cfg = cfg.replace(
-        randomize_params=False,
-        demand=None,
-        throughput="all",
-        plant_family=None,
-        duty_cycle=None,
-        action_mode="delta",
-        max_steps=10**6,
-    )
+    cfg = undisturbed_config(GearSpeedConfig.from_kwargs(config)).replace(max_steps=10**6)
     if omegas is None:
         omegas = np.linspace(cfg.omega_min, cfg.omega_max, 59)
     w = np.asarray(omegas, float).ravel()
@@ -140,4 +146,4 @@ def steady_reward_map(
     return SteadyRewardMap(w, total / average_steps, terms, settle_steps, average_steps)
 
 
-__all__ = ["SteadyRewardMap", "steady_reward_map"]
+__all__ = ["SteadyRewardMap", "steady_reward_map", "undisturbed_config"]
