@@ -32,8 +32,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -117,10 +119,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     from gear_env.env_config import task_config
     from gear_env.evaluation import evaluate_policies
 
-    over = {}
-    for item in args.set:
-        k, _, v = item.partition("=")
-        over[k.strip()] = json.loads(v)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from stock_ppo import parse_settings
+
+    over = parse_settings(args.set)
     cfg = task_config(ENV_ID, over)
     out: dict = {"settings": over}
     if args.maps:
@@ -158,10 +160,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         out["env"] = {s: R[s].tolist() for s in specs}
     if args.seeds_json:
-        import sys
-        from pathlib import Path
-
-        sys.path.insert(0, str(Path(__file__).resolve().parent))
         from stock_ppo import iqm_ci
 
         data = json.loads(Path(args.seeds_json).read_text(encoding="utf-8"))

@@ -47,7 +47,7 @@ def train_shipped(env_id: str, seed: int, out: Path, hyperparams: Path, timestep
     return {"wall_s": wall, "cpu_s": cpu, "load_start": load0, "load_end": os.getloadavg(), "steps": opts.timesteps}
 
 
-def combine(paths: Sequence[str], json_out: str | None, iqm_ci) -> int:
+def combine(paths: Sequence[str], json_out: str | None, report_iqm) -> int:
     """Merge the JSON outputs of runs made in parallel (same task, episodes and baselines) and print the IQM."""
     parts = [json.loads(Path(p).read_text(encoding="utf-8")) for p in paths]
     keys = ("env", "eval_seed", "episodes", "model")
@@ -62,15 +62,7 @@ def combine(paths: Sequence[str], json_out: str | None, iqm_ci) -> int:
             f"seed {r['seed']}: {r['pct_of_oracle']:.1f} % of the oracle, "
             f"{r['wall_s']:.0f} s wall, {r['cpu_s']:.0f} s CPU"
         )
-    m, lo, hi = iqm_ci(scores)
-    out["iqm_pct"], out["iqm_ci95_pct"] = 100 * m, [100 * lo, 100 * hi]
-    print(
-        f"IQM {100 * m:.1f} % of the oracle, 95 % bootstrap CI [{100 * lo:.1f}, {100 * hi:.1f}] over {len(scores)} runs"
-    )
-    if json_out:
-        from gear_env.io import atomic_write_text
-
-        atomic_write_text(json_out, json.dumps(out, indent=1))
+    report_iqm(out, scores, len(scores), json_out)
     return 0
 
 
@@ -91,10 +83,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     args = ap.parse_args(argv)
 
-    from stock_ppo import iqm_ci  # benchmarks/ is the script's folder
+    from stock_ppo import report_iqm  # benchmarks/ is the script's folder
 
     if args.combine:
-        return combine(args.combine, args.json, iqm_ci)
+        return combine(args.combine, args.json, report_iqm)
 
     from agents.registry import resolve_policy
     from gear_env.env_config import task_config
@@ -143,15 +135,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 f"{t['cpu_s']:.0f} s CPU (load {t['load_start'][0]:.1f} -> {t['load_end'][0]:.1f})",
                 flush=True,
             )
-    m, lo, hi = iqm_ci(np.array(scores))
-    out["iqm_pct"], out["iqm_ci95_pct"] = 100 * m, [100 * lo, 100 * hi]
-    print(
-        f"IQM {100 * m:.1f} % of the oracle, 95 % bootstrap CI [{100 * lo:.1f}, {100 * hi:.1f}] over {len(scores)} runs"
-    )
-    if args.json:
-        from gear_env.io import atomic_write_text
-
-        atomic_write_text(args.json, json.dumps(out, indent=1))
+    report_iqm(out, scores, len(scores), args.json)
     return 0
 
 

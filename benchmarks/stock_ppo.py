@@ -45,6 +45,27 @@ def iqm_ci(scores: np.ndarray, reps: int = 2000, seed: int = 0) -> tuple[float, 
     return iqm(s), float(np.percentile(stats, 2.5)), float(np.percentile(stats, 97.5))
 
 
+def parse_settings(items: Sequence[str]) -> dict:
+    """``--set KEY=JSON`` items as a dict of task settings (JSON values)."""
+    out = {}
+    for item in items:
+        k, _, v = item.partition("=")
+        out[k.strip()] = json.loads(v)
+    return out
+
+
+def report_iqm(out: dict, scores: Sequence, n_runs: int, json_path: str | None) -> None:
+    """Add the IQM of the (runs, episodes) oracle-normalised ``scores`` and its 95 % bootstrap CI to
+    ``out`` (in %), print them, and write ``out`` atomically to ``json_path`` if given."""
+    m, lo, hi = iqm_ci(np.array(scores))
+    out["iqm_pct"], out["iqm_ci95_pct"] = 100 * m, [100 * lo, 100 * hi]
+    print(f"IQM {100 * m:.1f} % of the oracle, 95 % bootstrap CI [{100 * lo:.1f}, {100 * hi:.1f}] over {n_runs} runs")
+    if json_path:
+        from gear_env.io import atomic_write_text
+
+        atomic_write_text(json_path, json.dumps(out, indent=1))
+
+
 class _Frozen:
     """A trained SB3 model + frozen VecNormalize as a policy with the common ``predict``."""
 
@@ -114,10 +135,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--diagnose", action="store_true", help="print the policy std and settled omega per rollout")
     ap.add_argument("--json", metavar="PATH")
     args = ap.parse_args(argv)
-    settings = {}
-    for kv in args.set:
-        k, _, v = kv.partition("=")
-        settings[k.strip()] = json.loads(v)
+    settings = parse_settings(args.set)
 
     from agents.registry import resolve_policy
     from gear_env.env_config import task_config
@@ -162,16 +180,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             }
         )
         print(f"seed {s}: {r.mean():.2f} = {100 * r.mean() / oracle.mean():.1f} % of the oracle, {wall:.0f} s wall")
-    m, lo, hi = iqm_ci(np.array(scores))
-    out["iqm_pct"], out["iqm_ci95_pct"] = 100 * m, [100 * lo, 100 * hi]
-    print(
-        f"IQM {100 * m:.1f} % of the oracle, 95 % bootstrap CI [{100 * lo:.1f}, {100 * hi:.1f}] "
-        f"over {len(args.seeds)} runs"
-    )
-    if args.json:
-        from gear_env.io import atomic_write_text
-
-        atomic_write_text(args.json, json.dumps(out, indent=1))
+    report_iqm(out, scores, len(args.seeds), args.json)
     return 0
 
 
