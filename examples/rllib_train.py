@@ -272,9 +272,8 @@ def train_and_compare(
                 "num_envs_per_runner": num_envs_per_runner,
                 "rollout_fragment_length": rollout_fragment_length,
                 "vector_env_classes": vec_env_classes,
-                "ppo": {
-                    **ppo_settings(env_id)["training"],
-                    "minibatch_size": config.minibatch_size,
+                "ppo": {  # the values the algorithm ran with (read back from its config, not recomputed)
+                    **{name: getattr(config, name) for name in _RLLIB_NAMES.values()},
                     "train_batch_size_per_learner": config.train_batch_size_per_learner,
                 },
                 "seed": seed,
