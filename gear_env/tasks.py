@@ -220,10 +220,17 @@ class Episode:
 __all__ = ["DutyCycle", "Episode", "PlantFamily", "random_demand"]
 
 
-V1_SETTINGS: dict[str, Any] = {"action_mode": "target", "periods_per_step": 48, "max_domega": 0.1, "max_steps": 100}
+V1_SETTINGS: dict[str, Any] = {
+    "action_mode": "target",
+    "periods_per_step": 48,
+    "max_domega": 0.1,
+    "max_steps": 100,
+    "reference_filter": 0.1,
+}
 """``GearSpeed-v1``: the settings that differ from ``GearSpeed-v0`` (docs/ENVIRONMENT.md says why)."""
 DEMAND_SETTINGS: dict[str, Any] = {
     **V1_SETTINGS,
+    "reference_filter": 1.0,
     "plant_family": {"load": (0.4, 1.5), "e_m1": (0.25, 2.0)},
     "duty_cycle": {"levels": (1.0, 0.6), "segment_steps": (20, 50)},
     "demand": "random",
