@@ -267,6 +267,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "eval_seeds": [args.eval_seed + k for k in range(args.eval_episodes)],
         "returns": res,
         "settled_omega": {k: [e.settled_omega for e in v] for k, v in rep.episodes.items()},
+        "omega": {k: [e.omega for e in v] for k, v in rep.episodes.items()},
         "pct_of_oracle": {k: 100 * float(np.mean(v)) / o for k, v in res.items()},
     }
     for k, v in res.items():
