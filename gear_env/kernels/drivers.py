@@ -12,6 +12,7 @@ import numpy as np
 from .jit import kernel, kernel_inline, readonly, runtime_int, runtime_true
 from .layout import (
     DIVERGED,
+    N_LOOP_ACC,
     NSTATE,
     OK,
     PC_BD,
@@ -26,6 +27,24 @@ from .layout import (
     REC_PSI,
     REC_REGION,
     REC_S,
+    RS_ACC,
+    RS_BD,
+    RS_CP,
+    RS_DELTA,
+    RS_EL,
+    RS_F,
+    RS_F_PREV,
+    RS_HC,
+    RS_J,
+    RS_REG_PREV,
+    RS_REGION,
+    RS_S,
+    RS_SIZE,
+    RS_SP,
+    RS_TR_PREV,
+    RS_WA,
+    RS_WB,
+    SPLIT_PENDING,
     TWO_PI,
     WORK_SIZE,
 )
@@ -149,10 +168,7 @@ def integrate_stats(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare
     ``reset_stats``). Time integrals use the trapezoidal rule. omega goes linearly in time from
     w0 to w1 over the interval. Returns (status, periods completed, natural time elapsed).
     ``phi0`` should be a multiple of 2 pi for the samples to lie on the Poincare section.
-
-    The state and the statistics live in local variables (registers) during the loop and are
-    written back at the end, also when the run stops early. psi enters the statistics through
-    sin psi (monotonic in psi, |psi| < pi/2), so no atan2 is evaluated per step.
+    The loop is :func:`stats_segment`'s; Python calls :func:`integrate_stats_lazy`, the same.
     """
     return integrate_stats_tab(
         x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats,
@@ -178,33 +194,125 @@ def integrate_stats_tab(
     """:func:`integrate_stats` with the excitation table of the period given
     (``_excitation_table(phi0, n_steps, c)``), for callers that run many short intervals.
 
-    Two nested loops: the inner one takes the steps and calls no function; a step whose Newton
-    iteration does not converge leaves it for the outer loop, which takes the step again with
-    :func:`split_step_t` and re-enters the inner loop with the result (``split = 1``), so the
-    same code records every step. With the call inside the hot loop, as before, the compiler
-    keeps the ~60 live values of a step ready to be saved around it (on x86-64 every
-    floating-point register is caller-saved): 5-17 % slower in interleaved A/B runs, with
-    bit-identical results.
+    The steps are taken by :func:`stats_segment`, which stops before a step whose Newton
+    iteration does not converge; :func:`split_resume` takes that step in sub-steps and the
+    segment goes on. :func:`integrate_stats_lazy` is the same loop in Python.
     """
-    work = np.zeros(WORK_SIZE)
+    rs = np.empty(RS_SIZE)
+    rs[RS_J] = -1.0
+    st, done, el = stats_segment(
+        x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab, rs
+    )
+    while st == SPLIT_PENDING:
+        st, done, el = split_resume(x, a, phi0, n_steps, c, dynamic, stats, max_iter, tol, rs)
+        if st == OK:
+            st, done, el = stats_segment(
+                x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab,
+                rs,
+            )  # fmt: skip
+    return st, done, el
+
+
+_NO_TAB = np.empty((0, 3))
+
+
+def integrate_stats_lazy(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol,
+                         reset_stats):  # fmt: skip
+    """:func:`integrate_stats` (same arguments and results, bit for bit) as a Python loop over
+    :func:`stats_segment` and :func:`split_resume`: the step-splitting fallback, a second copy of
+    the Newmark step (~5 s of first-call compile), is compiled only when a step first needs it.
+    The entry of :func:`gear_env.integration.integrate` for one system (simulator, single env)."""
+    rs = np.empty(RS_SIZE)
+    rs[RS_J] = -1.0
+    st, done, el = stats_segment(
+        x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, _NO_TAB, rs
+    )
+    while st == SPLIT_PENDING:
+        st, done, el = split_resume(x, a, phi0, n_steps, c, dynamic, stats, max_iter, tol, rs)
+        if st == OK:
+            st, done, el = stats_segment(
+                x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats,
+                _NO_TAB, rs,
+            )  # fmt: skip
+    return st, done, el
+
+
+@kernel_inline
+def _rs_tuple15(rs, o):
+    """The 15 floats rs[o:o+15] as a tuple (a state tuple of ``kernels.newmark``)."""
+    return (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6], rs[o + 7], rs[o + 8],
+            rs[o + 9], rs[o + 10], rs[o + 11], rs[o + 12], rs[o + 13], rs[o + 14])  # fmt: skip
+
+
+@kernel
+def stats_segment(
+    x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab, rs
+):
+    """The loop of :func:`integrate_stats_tab` (same arguments, plus ``rs``), up to the first step
+    that Newton does not finish.
+
+    ``rs[RS_J] = -1`` starts the interval (a ``tab`` with other than n_steps rows is computed
+    here). At a step that needs splitting the loop's locals go to ``rs`` (``kernels.layout``,
+    ``RS_*``) and SPLIT_PENDING is returned (x, a and stats not yet updated); after
+    :func:`split_resume` took the step, a call with the same arguments and ``rs`` continues with
+    its result (what the loop did with the step's fallback inline, whose call made every caller
+    compile a second copy of the Newmark step). Returns (status, periods completed, natural time
+    elapsed) at the end of the interval.
+
+    The state and the statistics live in local variables (registers) during the loop and are
+    written back at the end, also when the run stops early. psi enters the statistics through
+    sin psi (monotonic in psi, |psi| < pi/2), so no atan2 is evaluated per step. Two nested
+    loops: the inner one takes the steps and calls no function; a step whose Newton iteration
+    does not converge leaves it for the outer one, which hands the step to :func:`split_resume`;
+    with a call inside the hot loop the compiler keeps the ~60 live values of a step ready to be
+    saved around it (on x86-64 every floating-point register is caller-saved): 5-17 % slower in
+    interleaved A/B runs, with bit-identical results.
+    """
     k = step_consts(c)
-    if reset_stats:
-        _stats_init(stats)
     total = n_periods * n_steps
     dphi = TWO_PI / n_steps
     ww = (w1 * w1 - w0 * w0) / total
-    F_prev, reg_prev, delta, bd = start_step(x, a, phi0, w0, c, dynamic, work)
-    s = load_t(x, a)
-    g = (a[0], a[1], a[2], a[3], a[4])
-    tr_prev = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
-    acc = _acc_init()  # local accumulators (merged into ``stats`` at the end)
-    el = 0.0
-    wa = w0
-    hc = step_coeffs(dphi / w0, k)
+    if tab.shape[0] != n_steps:
+        tab = _excitation_table(phi0, n_steps, c)
     status = OK
     done = n_periods
-    split = 0.0  # 1.0: step j was just taken by split_step_t
-    j = 0
+    if rs[RS_J] >= 0.0:  # continue after split_resume took step j (split = 1)
+        j = np.int64(rs[RS_J])
+        s = _rs_tuple15(rs, RS_S)
+        s1 = s
+        g = (s[10], s[11], s[12], s[13], s[14])
+        o = RS_ACC
+        acc = (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6], rs[o + 7], rs[o + 8],
+               rs[o + 9], rs[o + 10], rs[o + 11], rs[o + 12], rs[o + 13], rs[o + 14], rs[o + 15], rs[o + 16],
+               rs[o + 17], rs[o + 18], rs[o + 19], rs[o + 20])  # fmt: skip
+        tr_prev = rs[RS_TR_PREV]
+        F_prev = rs[RS_F_PREV]
+        reg_prev = np.int64(rs[RS_REG_PREV])
+        el = rs[RS_EL]
+        wa = rs[RS_WA]
+        o = RS_HC
+        hc = (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6])
+        F = rs[RS_F]
+        region = np.int64(rs[RS_REGION])
+        delta = rs[RS_DELTA]
+        bd = rs[RS_BD]
+        sp = rs[RS_SP]
+        cp = rs[RS_CP]
+        split = 1.0
+    else:
+        work = np.zeros(WORK_SIZE)
+        if reset_stats:
+            _stats_init(stats)
+        F_prev, reg_prev, delta, bd = start_step(x, a, phi0, w0, c, dynamic, work)
+        s = load_t(x, a)
+        g = (a[0], a[1], a[2], a[3], a[4])
+        tr_prev = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
+        acc = _acc_init()  # local accumulators (merged into ``stats`` at the end)
+        el = 0.0
+        wa = w0
+        hc = step_coeffs(dphi / w0, k)
+        split = 0.0  # 1.0: step j was just taken by split_resume
+        j = 0
     while j < total:
         while j < total:  # the hot loop: no calls
             wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
@@ -233,20 +341,57 @@ def integrate_stats_tab(
             j += 1
         if j == total or status != OK:
             break
-        # step j again, split into sub-steps (rare: Newton cycled between contact regions); the
-        # hot loop then takes its result
-        st, s1, F, region, delta, bd, sp, cp, _split = split_step_t(
-            s, phi0 + dphi * j, dphi, wa, wb, c, k, runtime_int(dynamic), max_iter, tol
-        )
-        if st != OK:
-            el += hc[0]
-            status = st
-            done = j // n_steps
-            break
-        split = 1.0
+        # step j needs sub-steps (rare: Newton cycled between contact regions): leave it to
+        # split_resume
+        rs[RS_J] = j
+        for i in range(NSTATE + 5):
+            rs[RS_S + i] = s[i]
+        for i in range(N_LOOP_ACC):
+            rs[RS_ACC + i] = acc[i]
+        rs[RS_TR_PREV] = tr_prev
+        rs[RS_F_PREV] = F_prev
+        rs[RS_REG_PREV] = reg_prev
+        rs[RS_EL] = el
+        rs[RS_WA] = wa
+        rs[RS_WB] = wb
+        for i in range(7):
+            rs[RS_HC + i] = hc[i]
+        return SPLIT_PENDING, 0, el
     store_t(s, x, a)
     _acc_store(acc, stats, c, dynamic)
     return status, done, el
+
+
+@kernel
+def split_resume(x, a, phi0, n_steps, c, dynamic, stats, max_iter, tol, rs):
+    """Take the step :func:`stats_segment` stopped at (SPLIT_PENDING) with :func:`split_step_t`
+    and put its result into ``rs``. Returns (OK, 0, 0.0) for the segment to go on; if the step
+    fails even in sub-steps, ends the interval as the segment would (state before the step into
+    x and a, statistics into ``stats``) and returns (status, periods completed, time elapsed)."""
+    j = np.int64(rs[RS_J])
+    dphi = TWO_PI / n_steps
+    k = step_consts(c)
+    s = _rs_tuple15(rs, RS_S)
+    st, s1, F, region, delta, bd, sp, cp, _split = split_step_t(
+        s, phi0 + dphi * j, dphi, rs[RS_WA], rs[RS_WB], c, k, dynamic, max_iter, tol
+    )
+    if st != OK:
+        o = RS_ACC
+        acc = (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6], rs[o + 7], rs[o + 8],
+               rs[o + 9], rs[o + 10], rs[o + 11], rs[o + 12], rs[o + 13], rs[o + 14], rs[o + 15], rs[o + 16],
+               rs[o + 17], rs[o + 18], rs[o + 19], rs[o + 20])  # fmt: skip
+        store_t(s, x, a)
+        _acc_store(acc, stats, c, dynamic)
+        return st, j // n_steps, rs[RS_EL] + rs[RS_HC]
+    for i in range(NSTATE + 5):
+        rs[RS_S + i] = s1[i]
+    rs[RS_F] = F
+    rs[RS_REGION] = region
+    rs[RS_DELTA] = delta
+    rs[RS_BD] = bd
+    rs[RS_SP] = sp
+    rs[RS_CP] = cp
+    return OK, 0, 0.0
 
 
 def integrate_stats_batch(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter,
