@@ -279,7 +279,6 @@ def test_integrate_split_steps_dynamic_model_during_a_ramp():
     assert np.array_equal(x, s[:10]) and np.array_equal(a, s[10:]) and np.array_equal(xo, x)
 
 
-
 @pytest.mark.parametrize(("model", "max_iter"), [(0, 1), (1, 1), (1, 0)])
 def test_lazy_entry_matches_the_compiled_loop_bit_for_bit(model, max_iter):
     """``integrate_stats_lazy`` (the single-system entry: a Python loop over ``stats_segment`` and
@@ -304,6 +303,7 @@ def test_lazy_entry_matches_the_compiled_loop_bit_for_bit(model, max_iter):
         np.testing.assert_array_equal(u, v)
     if max_iter:
         assert arrays0[3][K.ST_SPLITS] - (0.0 if model == 1 else 7.0) >= 10  # (stats not reset for model 0)
+
 
 # every name gear_env.kernels had when it was one file (kernels.py, before the split into a package);
 # other modules and branches import them from gear_env.kernels
