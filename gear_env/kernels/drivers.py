@@ -13,6 +13,7 @@ from .jit import kernel, kernel_inline, readonly, runtime_int, runtime_true
 from .layout import (
     DIVERGED,
     N_LOOP_ACC,
+    NDOF,
     NSTATE,
     OK,
     PC_BD,
@@ -48,7 +49,7 @@ from .layout import (
     TWO_PI,
     WORK_SIZE,
 )
-from .mesh import accel, excitation, mesh_state, psi_t, step_consts
+from .mesh import eom_residual_t, excitation, force_direction_t, force_t, friction_t, mesh_t, psi_t, step_consts
 from .newmark import _diverged_t, guess_t, load_t, newmark_try_t, omega_step_t, split_step_t, step_coeffs, store_t
 from .stats import _acc_init, _acc_step, _acc_store, _stats_init
 
@@ -70,12 +71,20 @@ def _excitation_table(phi0, n_steps, c):
 def start_step(x, a, phi0, w0, c, dynamic, work):
     """Consistent initial acceleration and mesh quantities at the start of an interval.
 
-    Fills ``a``; returns (F, region, delta, bd) at the start; psi is left in work[0].
+    Fills ``a``; returns (F, region, delta, bd) at the start; psi is left in work[0]. The
+    arithmetic of :func:`~gear_env.kernels.mesh.accel` (a = -r(0, q, v)) from the inline leaves,
+    so that a driver's first call compiles no array-form kernel (accel, mesh_state, geometry).
     """
-    geo = work
+    k = step_consts(c)
     ce, se, kk = excitation(phi0, c)
-    F = accel(x[0:5], x[5:10], ce, se, w0, kk, c, dynamic, geo, a)
-    delta, ddelta, bd, f, region = mesh_state(x[0:5], x[5:10], ce, se, w0, c, dynamic, geo)
+    s = (x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9])
+    delta, ddelta, bd, f, region, sp, cp, _db0, _db1, _dp0, _dp1 = mesh_t(s, ce, se, w0, k, dynamic)
+    F = force_t(ddelta, f, kk, k)
+    fr = friction_t(ce, se, k)  # [friction extension] 0 unless GearParams.friction > 0
+    r = eom_residual_t((0.0, 0.0, 0.0, 0.0, 0.0), s, F, force_direction_t(sp, cp, fr, k), k)  # a = -r(0, q, v)
+    for i in range(NDOF):
+        a[i] = -r[i]
+    work[0] = psi_t(sp, cp, c, dynamic)
     return F, region, delta, bd
 
 
