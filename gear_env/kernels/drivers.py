@@ -29,19 +29,14 @@ from .layout import (
     REC_REGION,
     REC_S,
     RS_ACC,
-    RS_BD,
-    RS_CP,
-    RS_DELTA,
     RS_EL,
-    RS_F,
     RS_F_PREV,
+    RS_G,
     RS_HC,
     RS_J,
     RS_REG_PREV,
-    RS_REGION,
     RS_S,
     RS_SIZE,
-    RS_SP,
     RS_TR_PREV,
     RS_WA,
     RS_WB,
@@ -213,16 +208,13 @@ def integrate_stats_tab(
         x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab, rs
     )
     while st == SPLIT_PENDING:
-        st, done, el = split_resume(x, a, phi0, n_steps, c, dynamic, stats, max_iter, tol, rs)
+        st, done, el = split_resume(x, a, phi0, n_steps, c, dynamic, poincare, stats, max_iter, tol, rs)
         if st == OK:
             st, done, el = stats_segment(
                 x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab,
                 rs,
             )  # fmt: skip
     return st, done, el
-
-
-_NO_TAB = np.empty((0, 3))
 
 
 def integrate_stats_lazy(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol,
@@ -233,15 +225,16 @@ def integrate_stats_lazy(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poi
     The entry of :func:`gear_env.integration.integrate` for one system (simulator, single env)."""
     rs = np.empty(RS_SIZE)
     rs[RS_J] = -1.0
+    tab = _excitation_table(phi0, n_steps, c)
     st, done, el = stats_segment(
-        x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, _NO_TAB, rs
+        x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab, rs
     )
     while st == SPLIT_PENDING:
-        st, done, el = split_resume(x, a, phi0, n_steps, c, dynamic, stats, max_iter, tol, rs)
+        st, done, el = split_resume(x, a, phi0, n_steps, c, dynamic, poincare, stats, max_iter, tol, rs)
         if st == OK:
             st, done, el = stats_segment(
                 x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats,
-                _NO_TAB, rs,
+                tab, rs,
             )  # fmt: skip
     return st, done, el
 
@@ -253,6 +246,35 @@ def _rs_tuple15(rs, o):
             rs[o + 9], rs[o + 10], rs[o + 11], rs[o + 12], rs[o + 13], rs[o + 14])  # fmt: skip
 
 
+@kernel_inline
+def _rs_acc(rs):
+    """The accumulators (``stats._acc_init``) saved in rs."""
+    o = RS_ACC
+    return (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6], rs[o + 7], rs[o + 8],
+            rs[o + 9], rs[o + 10], rs[o + 11], rs[o + 12], rs[o + 13], rs[o + 14], rs[o + 15], rs[o + 16],
+            rs[o + 17], rs[o + 18], rs[o + 19], rs[o + 20])  # fmt: skip
+
+
+@kernel_inline
+def _rs_save_t(rs, j, s, g, acc, tr_prev, F_prev, reg_prev, el, wa, wb, hc):
+    """Write the loop's locals into rs (layout ``RS_*``)."""
+    rs[RS_J] = j
+    for i in range(NSTATE + NDOF):
+        rs[RS_S + i] = s[i]
+    for i in range(NDOF):
+        rs[RS_G + i] = g[i]
+    for i in range(N_LOOP_ACC):
+        rs[RS_ACC + i] = acc[i]
+    rs[RS_TR_PREV] = tr_prev
+    rs[RS_F_PREV] = F_prev
+    rs[RS_REG_PREV] = reg_prev
+    rs[RS_EL] = el
+    rs[RS_WA] = wa
+    rs[RS_WB] = wb
+    for i in range(7):
+        rs[RS_HC + i] = hc[i]
+
+
 @kernel
 def stats_segment(
     x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab, rs
@@ -260,40 +282,31 @@ def stats_segment(
     """The loop of :func:`integrate_stats_tab` (same arguments, plus ``rs``), up to the first step
     that Newton does not finish.
 
-    ``rs[RS_J] = -1`` starts the interval (a ``tab`` with other than n_steps rows is computed
-    here). At a step that needs splitting the loop's locals go to ``rs`` (``kernels.layout``,
-    ``RS_*``) and SPLIT_PENDING is returned (x, a and stats not yet updated); after
-    :func:`split_resume` took the step, a call with the same arguments and ``rs`` continues with
-    its result (what the loop did with the step's fallback inline, whose call made every caller
+    ``rs[RS_J] = -1`` starts the interval. At a step that needs splitting the loop's locals go to
+    ``rs`` (``kernels.layout``, ``RS_*``) and SPLIT_PENDING is returned (x, a and stats not yet
+    updated); :func:`split_resume` takes that step and puts them back, and a call with the same
+    arguments and ``rs`` continues (a call of the fallback from here would make every caller
     compile a second copy of the Newmark step). Returns (status, periods completed, natural time
     elapsed) at the end of the interval.
 
     The state and the statistics live in local variables (registers) during the loop and are
     written back at the end, also when the run stops early. psi enters the statistics through
-    sin psi (monotonic in psi, |psi| < pi/2), so no atan2 is evaluated per step. Two nested
-    loops: the inner one takes the steps and calls no function; a step whose Newton iteration
-    does not converge leaves it for the outer one, which hands the step to :func:`split_resume`;
-    with a call inside the hot loop the compiler keeps the ~60 live values of a step ready to be
-    saved around it (on x86-64 every floating-point register is caller-saved): 5-17 % slower in
-    interleaved A/B runs, with bit-identical results.
+    sin psi (monotonic in psi, |psi| < pi/2), so no atan2 is evaluated per step. The hot loop
+    calls no function: with a call inside it the compiler keeps the ~60 live values of a step
+    ready to be saved around it (on x86-64 every floating-point register is caller-saved): 5-17 %
+    slower in interleaved A/B runs, with bit-identical results.
     """
     k = step_consts(c)
     total = n_periods * n_steps
     dphi = TWO_PI / n_steps
     ww = (w1 * w1 - w0 * w0) / total
-    if tab.shape[0] != n_steps:
-        tab = _excitation_table(phi0, n_steps, c)
     status = OK
     done = n_periods
-    if rs[RS_J] >= 0.0:  # continue after split_resume took step j (split = 1)
+    if rs[RS_J] >= 0.0:  # continue after split_resume took step j - 1
         j = np.int64(rs[RS_J])
         s = _rs_tuple15(rs, RS_S)
-        s1 = s
-        g = (s[10], s[11], s[12], s[13], s[14])
-        o = RS_ACC
-        acc = (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6], rs[o + 7], rs[o + 8],
-               rs[o + 9], rs[o + 10], rs[o + 11], rs[o + 12], rs[o + 13], rs[o + 14], rs[o + 15], rs[o + 16],
-               rs[o + 17], rs[o + 18], rs[o + 19], rs[o + 20])  # fmt: skip
+        g = (rs[RS_G], rs[RS_G + 1], rs[RS_G + 2], rs[RS_G + 3], rs[RS_G + 4])
+        acc = _rs_acc(rs)
         tr_prev = rs[RS_TR_PREV]
         F_prev = rs[RS_F_PREV]
         reg_prev = np.int64(rs[RS_REG_PREV])
@@ -301,13 +314,6 @@ def stats_segment(
         wa = rs[RS_WA]
         o = RS_HC
         hc = (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6])
-        F = rs[RS_F]
-        region = np.int64(rs[RS_REGION])
-        delta = rs[RS_DELTA]
-        bd = rs[RS_BD]
-        sp = rs[RS_SP]
-        cp = rs[RS_CP]
-        split = 1.0
     else:
         work = np.zeros(WORK_SIZE)
         if reset_stats:
@@ -320,51 +326,37 @@ def stats_segment(
         el = 0.0
         wa = w0
         hc = step_coeffs(dphi / w0, k)
-        split = 0.0  # 1.0: step j was just taken by split_resume
         j = 0
-    while j < total:
-        while j < total:  # the hot loop: no calls
-            wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
-            m = (j + 1) % n_steps
-            if split == 0.0:
-                ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(
-                    s, g, tab[m, 0], tab[m, 1], tab[m, 2], wb, hc, k, dynamic, max_iter, tol
-                )
-                if not ok:
-                    break
-            h = hc[0]
-            el += h
-            g = guess_t(s, s1, dynamic == 0 or split != 0.0)
-            s = s1
-            if _diverged_t(s):
-                status = DIVERGED
-                done = j // n_steps
-                break
-            acc, tr_prev = _acc_step(acc, h, s, F, region, delta, bd, sp, split, F_prev, reg_prev, tr_prev)
-            F_prev = F
-            reg_prev = region
-            if m == 0:
-                _poincare_store_t(poincare, (j + 1) // n_steps - 1, s, F, delta, bd, sp, cp, c, dynamic)
-            wa = wb
-            split = 0.0
-            j += 1
-        if j == total or status != OK:
+    # a copy of the table allocated here: its row length (3) is then known to the compiler, which
+    # indexes it with a constant stride (with the argument's: +1.5 % time per step, constant model)
+    tf = np.empty((n_steps, 3))
+    tf[:, :] = tab[:n_steps, :]
+    while j < total:  # the hot loop: no calls
+        wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
+        m = (j + 1) % n_steps
+        ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(
+            s, g, tf[m, 0], tf[m, 1], tf[m, 2], wb, hc, k, dynamic, max_iter, tol
+        )
+        if not ok:
             break
-        # step j needs sub-steps (rare: Newton cycled between contact regions): leave it to
-        # split_resume
-        rs[RS_J] = j
-        for i in range(NSTATE + 5):
-            rs[RS_S + i] = s[i]
-        for i in range(N_LOOP_ACC):
-            rs[RS_ACC + i] = acc[i]
-        rs[RS_TR_PREV] = tr_prev
-        rs[RS_F_PREV] = F_prev
-        rs[RS_REG_PREV] = reg_prev
-        rs[RS_EL] = el
-        rs[RS_WA] = wa
-        rs[RS_WB] = wb
-        for i in range(7):
-            rs[RS_HC + i] = hc[i]
+        h = hc[0]
+        el += h
+        g = guess_t(s, s1, dynamic == 0)
+        s = s1
+        if _diverged_t(s):
+            status = DIVERGED
+            done = j // n_steps
+            break
+        acc, tr_prev = _acc_step(acc, h, s, F, region, delta, bd, sp, 0.0, F_prev, reg_prev, tr_prev)
+        F_prev = F
+        reg_prev = region
+        if m == 0:
+            _poincare_store_t(poincare, (j + 1) // n_steps - 1, s, F, delta, bd, sp, cp, c, dynamic)
+        wa = wb
+        j += 1
+    if j < total and status == OK:
+        # step j needs sub-steps (rare: Newton cycled between contact regions): split_resume
+        _rs_save_t(rs, j, s, g, acc, tr_prev, F_prev, reg_prev, el, wa, wb, hc)
         return SPLIT_PENDING, 0, el
     store_t(s, x, a)
     _acc_store(acc, stats, c, dynamic)
@@ -372,34 +364,43 @@ def stats_segment(
 
 
 @kernel
-def split_resume(x, a, phi0, n_steps, c, dynamic, stats, max_iter, tol, rs):
-    """Take the step :func:`stats_segment` stopped at (SPLIT_PENDING) with :func:`split_step_t`
-    and put its result into ``rs``. Returns (OK, 0, 0.0) for the segment to go on; if the step
-    fails even in sub-steps, ends the interval as the segment would (state before the step into
-    x and a, statistics into ``stats``) and returns (status, periods completed, time elapsed)."""
+def split_resume(x, a, phi0, n_steps, c, dynamic, poincare, stats, max_iter, tol, rs):
+    """Take the step :func:`stats_segment` stopped at (SPLIT_PENDING) in sub-steps
+    (:func:`split_step_t`) and do with its result what the segment's loop does with a step; the
+    loop's locals go back into ``rs``. Returns (OK, 0, 0.0) for the segment to go on; if the step
+    fails even in sub-steps, or diverges, ends the interval as the segment would (state into x
+    and a, statistics into ``stats``) and returns (status, periods completed, time elapsed)."""
     j = np.int64(rs[RS_J])
     dphi = TWO_PI / n_steps
     k = step_consts(c)
     s = _rs_tuple15(rs, RS_S)
+    acc = _rs_acc(rs)
+    wb = rs[RS_WB]
+    o = RS_HC
+    hc = (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6])
+    el = rs[RS_EL]
     st, s1, F, region, delta, bd, sp, cp, _split = split_step_t(
-        s, phi0 + dphi * j, dphi, rs[RS_WA], rs[RS_WB], c, k, dynamic, max_iter, tol
+        s, phi0 + dphi * j, dphi, rs[RS_WA], wb, c, k, dynamic, max_iter, tol
     )
     if st != OK:
-        o = RS_ACC
-        acc = (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6], rs[o + 7], rs[o + 8],
-               rs[o + 9], rs[o + 10], rs[o + 11], rs[o + 12], rs[o + 13], rs[o + 14], rs[o + 15], rs[o + 16],
-               rs[o + 17], rs[o + 18], rs[o + 19], rs[o + 20])  # fmt: skip
         store_t(s, x, a)
         _acc_store(acc, stats, c, dynamic)
-        return st, j // n_steps, rs[RS_EL] + rs[RS_HC]
-    for i in range(NSTATE + 5):
-        rs[RS_S + i] = s1[i]
-    rs[RS_F] = F
-    rs[RS_REGION] = region
-    rs[RS_DELTA] = delta
-    rs[RS_BD] = bd
-    rs[RS_SP] = sp
-    rs[RS_CP] = cp
+        return st, j // n_steps, el + hc[0]
+    # the segment's loop body with split = 1 (Newton's next guess: the split step's acceleration)
+    h = hc[0]
+    el += h
+    g = guess_t(s, s1, True)
+    if _diverged_t(s1):
+        store_t(s1, x, a)
+        _acc_store(acc, stats, c, dynamic)
+        return DIVERGED, j // n_steps, el
+    acc, tr_prev = _acc_step(
+        acc, h, s1, F, region, delta, bd, sp, 1.0, rs[RS_F_PREV], np.int64(rs[RS_REG_PREV]), rs[RS_TR_PREV]
+    )
+    m = (j + 1) % n_steps
+    if m == 0:
+        _poincare_store_t(poincare, (j + 1) // n_steps - 1, s1, F, delta, bd, sp, cp, c, dynamic)
+    _rs_save_t(rs, j + 1, s1, g, acc, tr_prev, F, region, el, wb, wb, hc)
     return OK, 0, 0.0
 
 

@@ -71,14 +71,15 @@ GEO_SIZE = 14
 
 
 # where ``stats_segment`` leaves its loop's locals when it stops before a step that Newton did not
-# finish (SPLIT_PENDING), and where ``split_resume`` puts the split step's result: the step index,
-# the state tuple before the step (replaced by the state after it), the accumulators of
+# finish (SPLIT_PENDING), and where ``split_resume`` puts them back after taking that step: the
+# step index, the state tuple, Newton's guess for the next step, the accumulators of
 # ``stats._acc_init``, the previous step's translational response, force and region, the elapsed
-# time, omega at both ends of the step, its coefficients (``newmark.step_coeffs``), then the split
-# step's status, F, region, Delta, B_d, sin psi and cos psi. RS_J = -1 starts a new interval.
+# time, omega at both ends of the step and its coefficients (``newmark.step_coeffs``).
+# RS_J = -1 starts a new interval.
 RS_J = 0
 RS_S = 1
-RS_ACC = RS_S + 15
+RS_G = RS_S + 15
+RS_ACC = RS_G + 5
 N_LOOP_ACC = 21  # length of stats._acc_init()
 RS_TR_PREV = RS_ACC + N_LOOP_ACC
 RS_F_PREV = RS_TR_PREV + 1
@@ -87,14 +88,7 @@ RS_EL = RS_REG_PREV + 1
 RS_WA = RS_EL + 1
 RS_WB = RS_WA + 1
 RS_HC = RS_WB + 1
-RS_STATUS = RS_HC + 7
-RS_F = RS_STATUS + 1
-RS_REGION = RS_F + 1
-RS_DELTA = RS_REGION + 1
-RS_BD = RS_DELTA + 1
-RS_SP = RS_BD + 1
-RS_CP = RS_SP + 1
-RS_SIZE = RS_CP + 1
+RS_SIZE = RS_HC + 7
 
 
 WORK_SIZE = 80
