@@ -329,8 +329,12 @@ def stats_segment(
         j = 0
     # a copy of the table allocated here: its row length (3) is then known to the compiler, which
     # indexes it with a constant stride (with the argument's: +1.5 % time per step, constant model)
+    # (a loop: a slice assignment would compile numba's shape-mismatch error message, ~3 s)
     tf = np.empty((n_steps, 3))
-    tf[:, :] = tab[:n_steps, :]
+    for i in range(n_steps):
+        tf[i, 0] = tab[i, 0]
+        tf[i, 1] = tab[i, 1]
+        tf[i, 2] = tab[i, 2]
     while j < total:  # the hot loop: no calls
         wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
         m = (j + 1) % n_steps
