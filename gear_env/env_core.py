@@ -2,7 +2,7 @@
 
 One :class:`GearSpeedCore` holds ``n`` independent gear pairs as plain arrays (state, omega,
 Poincare history, episode accumulators) and advances any subset of them with the numba kernels.
-The single environment is a core with ``n = 1`` (advanced with ``kernels.integrate_stats``), the
+The single environment is a core with ``n = 1`` (advanced with ``kernels.integrate_stats_lazy``), the
 vector environment a core with ``n = num_envs`` (all rows in one call of
 ``batch_kernels.integrate_stats_lanes``, which steps the rows together with SIMD, or of
 ``kernels.integrate_stats_batch`` below LANES_MIN rows); features and rewards are computed by the
@@ -108,7 +108,7 @@ class GearSpeedCore:
     Args:
         config: validated :class:`GearSpeedConfig`.
         n: number of systems.
-        single: advance with ``integrate_stats`` one system at a time (the single env) instead of
+        single: advance with ``integrate_stats_lazy`` one system at a time (the single env) instead of
             the batch kernels (``integrate_stats_lanes`` from LANES_MIN rows up,
             ``integrate_stats_batch`` below); all give identical numbers.
     """

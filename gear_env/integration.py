@@ -10,7 +10,7 @@ kernel for the shape of the input and fills in the Newton settings:
 input                            kernel
 ==============================  =====================================================
 one state, ``record=True``       :func:`gear_env.kernels.integrate_record`
-one state                        :func:`gear_env.kernels.integrate_stats`
+one state                        :func:`gear_env.kernels.integrate_stats_lazy`
 a batch, ``simd=True``           :func:`gear_env.batch_kernels.integrate_stats_lanes`
 a batch, ``simd=False``          :func:`gear_env.kernels.integrate_stats_batch`
 ==============================  =====================================================
@@ -112,7 +112,7 @@ def integrate(
             poincare = np.empty((periods, K.N_PC))
         if stats is None:
             stats = np.empty(K.N_STATS)
-        status, done, el = K.integrate_stats(
+        status, done, el = K.integrate_stats_lazy(
             x, a, 0.0, omega0, omega1, periods, steps_per_period, c, dynamic, poincare, stats, max_iter, tol, True
         )
         return IntervalRun(status, done, el, poincare, stats)

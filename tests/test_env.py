@@ -229,7 +229,7 @@ def test_divergence_terminates_with_penalty_and_finite_obs(monkeypatch):
         x[:] = np.nan  # what a blown-up integration leaves behind
         return K.DIVERGED, 0, 0.0
 
-    monkeypatch.setattr(K, "integrate_stats", broken)
+    monkeypatch.setattr(K, "integrate_stats_lazy", broken)  # the single-system entry
     obs, r, te, tr, info = env.step(np.array([1.0], np.float32))
     assert te and not tr
     assert info["diverged"] is True

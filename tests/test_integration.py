@@ -60,13 +60,13 @@ def test_record_matches_stats_and_buffers_are_filled_in_place():
 def test_constants_are_passed_read_only_and_record_of_a_batch_is_refused(monkeypatch):
     X, A, C = _starts(2, "constant")
     seen = []
-    real = K.integrate_stats
+    real = K.integrate_stats_lazy
 
     def spy(*args):
         seen.append(args[7].flags.writeable)
         return real(*args)
 
-    monkeypatch.setattr(K, "integrate_stats", spy)
+    monkeypatch.setattr(K, "integrate_stats_lazy", spy)
     assert C.flags.writeable
     integrate(X[0].copy(), A[0].copy(), C[0], 0, 1.0, 1.0, 1, 16)
     assert seen == [False]  # the kernel got a read-only view (one compiled copy, kernels.readonly)

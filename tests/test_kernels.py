@@ -279,6 +279,32 @@ def test_integrate_split_steps_dynamic_model_during_a_ramp():
     assert np.array_equal(x, s[:10]) and np.array_equal(a, s[10:]) and np.array_equal(xo, x)
 
 
+@pytest.mark.parametrize(("model", "max_iter"), [(0, 1), (1, 1), (1, 0)])
+def test_lazy_entry_matches_the_compiled_loop_bit_for_bit(model, max_iter):
+    """``integrate_stats_lazy`` (the single-system entry: a Python loop over ``stats_segment`` and
+    ``split_resume``) gives ``integrate_stats``'s numbers bit for bit: with many split steps
+    (max_iter=1) during a ramp, and when a step fails even split (max_iter=0: nothing converges)."""
+    p = GearParams()
+    c = K.readonly(p.consts)
+    name = "dynamic" if model else "constant"
+    w0, w1, n, periods = (2.3, 2.5, 32, 6) if model else (0.5, 0.55, 32, 200)  # both: many splits
+    out = []
+    for f in (K.integrate_stats, K.integrate_stats_lazy):
+        x = default_initial_state(p, name)
+        a = np.zeros(5)
+        pc = np.zeros((periods, K.N_PC))
+        st = np.full(K.N_STATS, 7.0)
+        res = f(x, a, 0.0, w0, w1, periods, n, c, model, pc, st, max_iter, 1e-10, model == 1)
+        out.append((res, x, a, pc, st))
+    (r0, *arrays0), (r1, *arrays1) = out
+    assert r0 == r1
+    assert r0[0] == (K.OK if max_iter else K.NEWTON_FAILED)
+    for u, v in zip(arrays0, arrays1, strict=True):
+        np.testing.assert_array_equal(u, v)
+    if max_iter:
+        assert arrays0[3][K.ST_SPLITS] - (0.0 if model == 1 else 7.0) >= 10  # (stats not reset for model 0)
+
+
 # every name gear_env.kernels had when it was one file (kernels.py, before the split into a package);
 # other modules and branches import them from gear_env.kernels
 _NAMES_BEFORE_SPLIT = """

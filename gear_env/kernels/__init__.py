@@ -9,7 +9,8 @@ module                 holds
                        force, the equations of motion in residual form and their derivatives,
                        accelerations, step constants, static equilibrium
 ``kernels.newmark``    one Newmark-beta step: predictor, Newton iteration, step splitting
-``kernels.drivers``    many steps per call: ``integrate_record``, ``integrate_stats(_batch)``
+``kernels.drivers``    many steps per call: ``integrate_record``, ``integrate_stats(_batch)``,
+                       ``integrate_stats_lazy`` (Python, the split fallback compiled on need)
 ``kernels.stats``      the interval statistics accumulated by the drivers
 =====================  ======================================================================
 
@@ -54,8 +55,11 @@ from .drivers import (
     integrate_record,
     integrate_stats,
     integrate_stats_batch,
+    integrate_stats_lazy,
     integrate_stats_tab,
+    split_resume,
     start_step,
+    stats_segment,
 )
 from .jit import kernel, kernel_inline, readonly, runtime_int, runtime_true
 from .layout import (
@@ -104,6 +108,9 @@ from .layout import (
     REC_PSI,
     REC_REGION,
     REC_S,
+    RS_J,
+    RS_SIZE,
+    SPLIT_PENDING,
     ST_BACK_IMPACTS,
     ST_BACK_TIME,
     ST_BD_MAX,

@@ -12,6 +12,8 @@ import numpy as np
 from .jit import kernel, kernel_inline, readonly, runtime_int, runtime_true
 from .layout import (
     DIVERGED,
+    N_LOOP_ACC,
+    NDOF,
     NSTATE,
     OK,
     PC_BD,
@@ -26,10 +28,23 @@ from .layout import (
     REC_PSI,
     REC_REGION,
     REC_S,
+    RS_ACC,
+    RS_EL,
+    RS_F_PREV,
+    RS_G,
+    RS_HC,
+    RS_J,
+    RS_REG_PREV,
+    RS_S,
+    RS_SIZE,
+    RS_TR_PREV,
+    RS_WA,
+    RS_WB,
+    SPLIT_PENDING,
     TWO_PI,
     WORK_SIZE,
 )
-from .mesh import accel, excitation, mesh_state, psi_t, step_consts
+from .mesh import eom_residual_t, excitation, force_direction_t, force_t, friction_t, mesh_t, psi_t, step_consts
 from .newmark import _diverged_t, guess_t, load_t, newmark_try_t, omega_step_t, split_step_t, step_coeffs, store_t
 from .stats import _acc_init, _acc_step, _acc_store, _stats_init
 
@@ -51,12 +66,20 @@ def _excitation_table(phi0, n_steps, c):
 def start_step(x, a, phi0, w0, c, dynamic, work):
     """Consistent initial acceleration and mesh quantities at the start of an interval.
 
-    Fills ``a``; returns (F, region, delta, bd) at the start; psi is left in work[0].
+    Fills ``a``; returns (F, region, delta, bd) at the start; psi is left in work[0]. The
+    arithmetic of :func:`~gear_env.kernels.mesh.accel` (a = -r(0, q, v)) from the inline leaves,
+    so that a driver's first call compiles no array-form kernel (accel, mesh_state, geometry).
     """
-    geo = work
+    k = step_consts(c)
     ce, se, kk = excitation(phi0, c)
-    F = accel(x[0:5], x[5:10], ce, se, w0, kk, c, dynamic, geo, a)
-    delta, ddelta, bd, f, region = mesh_state(x[0:5], x[5:10], ce, se, w0, c, dynamic, geo)
+    s = (x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9])
+    delta, ddelta, bd, f, region, sp, cp, _db0, _db1, _dp0, _dp1 = mesh_t(s, ce, se, w0, k, dynamic)
+    F = force_t(ddelta, f, kk, k)
+    fr = friction_t(ce, se, k)  # [friction extension] 0 unless GearParams.friction > 0
+    r = eom_residual_t((0.0, 0.0, 0.0, 0.0, 0.0), s, F, force_direction_t(sp, cp, fr, k), k)  # a = -r(0, q, v)
+    for i in range(NDOF):
+        a[i] = -r[i]
+    work[0] = psi_t(sp, cp, c, dynamic)
     return F, region, delta, bd
 
 
@@ -149,10 +172,7 @@ def integrate_stats(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare
     ``reset_stats``). Time integrals use the trapezoidal rule. omega goes linearly in time from
     w0 to w1 over the interval. Returns (status, periods completed, natural time elapsed).
     ``phi0`` should be a multiple of 2 pi for the samples to lie on the Poincare section.
-
-    The state and the statistics live in local variables (registers) during the loop and are
-    written back at the end, also when the run stops early. psi enters the statistics through
-    sin psi (monotonic in psi, |psi| < pi/2), so no atan2 is evaluated per step.
+    The loop is :func:`stats_segment`'s; Python calls :func:`integrate_stats_lazy`, the same.
     """
     return integrate_stats_tab(
         x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats,
@@ -178,75 +198,214 @@ def integrate_stats_tab(
     """:func:`integrate_stats` with the excitation table of the period given
     (``_excitation_table(phi0, n_steps, c)``), for callers that run many short intervals.
 
-    Two nested loops: the inner one takes the steps and calls no function; a step whose Newton
-    iteration does not converge leaves it for the outer loop, which takes the step again with
-    :func:`split_step_t` and re-enters the inner loop with the result (``split = 1``), so the
-    same code records every step. With the call inside the hot loop, as before, the compiler
-    keeps the ~60 live values of a step ready to be saved around it (on x86-64 every
-    floating-point register is caller-saved): 5-17 % slower in interleaved A/B runs, with
-    bit-identical results.
+    The steps are taken by :func:`stats_segment`, which stops before a step whose Newton
+    iteration does not converge; :func:`split_resume` takes that step in sub-steps and the
+    segment goes on. :func:`integrate_stats_lazy` is the same loop in Python.
     """
-    work = np.zeros(WORK_SIZE)
+    rs = np.empty(RS_SIZE)
+    rs[RS_J] = -1.0
+    st, done, el = stats_segment(
+        x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab, rs
+    )
+    while st == SPLIT_PENDING:
+        st, done, el = split_resume(x, a, phi0, n_steps, c, dynamic, poincare, stats, max_iter, tol, rs)
+        if st == OK:
+            st, done, el = stats_segment(
+                x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab,
+                rs,
+            )  # fmt: skip
+    return st, done, el
+
+
+def integrate_stats_lazy(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol,
+                         reset_stats):  # fmt: skip
+    """:func:`integrate_stats` (same arguments and results, bit for bit) as a Python loop over
+    :func:`stats_segment` and :func:`split_resume`: the step-splitting fallback, a second copy of
+    the Newmark step (~5 s of first-call compile), is compiled only when a step first needs it.
+    The entry of :func:`gear_env.integration.integrate` for one system (simulator, single env)."""
+    rs = np.empty(RS_SIZE)
+    rs[RS_J] = -1.0
+    tab = _excitation_table(phi0, n_steps, c)
+    st, done, el = stats_segment(
+        x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab, rs
+    )
+    while st == SPLIT_PENDING:
+        st, done, el = split_resume(x, a, phi0, n_steps, c, dynamic, poincare, stats, max_iter, tol, rs)
+        if st == OK:
+            st, done, el = stats_segment(
+                x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats,
+                tab, rs,
+            )  # fmt: skip
+    return st, done, el
+
+
+@kernel_inline
+def _rs_tuple15(rs, o):
+    """The 15 floats rs[o:o+15] as a tuple (a state tuple of ``kernels.newmark``)."""
+    return (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6], rs[o + 7], rs[o + 8],
+            rs[o + 9], rs[o + 10], rs[o + 11], rs[o + 12], rs[o + 13], rs[o + 14])  # fmt: skip
+
+
+@kernel_inline
+def _rs_acc(rs):
+    """The accumulators (``stats._acc_init``) saved in rs."""
+    o = RS_ACC
+    return (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6], rs[o + 7], rs[o + 8],
+            rs[o + 9], rs[o + 10], rs[o + 11], rs[o + 12], rs[o + 13], rs[o + 14], rs[o + 15], rs[o + 16],
+            rs[o + 17], rs[o + 18], rs[o + 19], rs[o + 20])  # fmt: skip
+
+
+@kernel_inline
+def _rs_save_t(rs, j, s, g, acc, tr_prev, F_prev, reg_prev, el, wa, wb, hc):
+    """Write the loop's locals into rs (layout ``RS_*``)."""
+    rs[RS_J] = j
+    for i in range(NSTATE + NDOF):
+        rs[RS_S + i] = s[i]
+    for i in range(NDOF):
+        rs[RS_G + i] = g[i]
+    for i in range(N_LOOP_ACC):
+        rs[RS_ACC + i] = acc[i]
+    rs[RS_TR_PREV] = tr_prev
+    rs[RS_F_PREV] = F_prev
+    rs[RS_REG_PREV] = reg_prev
+    rs[RS_EL] = el
+    rs[RS_WA] = wa
+    rs[RS_WB] = wb
+    for i in range(7):
+        rs[RS_HC + i] = hc[i]
+
+
+@kernel
+def stats_segment(
+    x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab, rs
+):
+    """The loop of :func:`integrate_stats_tab` (same arguments, plus ``rs``), up to the first step
+    that Newton does not finish.
+
+    ``rs[RS_J] = -1`` starts the interval. At a step that needs splitting the loop's locals go to
+    ``rs`` (``kernels.layout``, ``RS_*``) and SPLIT_PENDING is returned (x, a and stats not yet
+    updated); :func:`split_resume` takes that step and puts them back, and a call with the same
+    arguments and ``rs`` continues (a call of the fallback from here would make every caller
+    compile a second copy of the Newmark step). Returns (status, periods completed, natural time
+    elapsed) at the end of the interval.
+
+    The state and the statistics live in local variables (registers) during the loop and are
+    written back at the end, also when the run stops early. psi enters the statistics through
+    sin psi (monotonic in psi, |psi| < pi/2), so no atan2 is evaluated per step. The hot loop
+    calls no function: with a call inside it the compiler keeps the ~60 live values of a step
+    ready to be saved around it (on x86-64 every floating-point register is caller-saved): 5-17 %
+    slower in interleaved A/B runs, with bit-identical results.
+    """
     k = step_consts(c)
-    if reset_stats:
-        _stats_init(stats)
     total = n_periods * n_steps
     dphi = TWO_PI / n_steps
     ww = (w1 * w1 - w0 * w0) / total
-    F_prev, reg_prev, delta, bd = start_step(x, a, phi0, w0, c, dynamic, work)
-    s = load_t(x, a)
-    g = (a[0], a[1], a[2], a[3], a[4])
-    tr_prev = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
-    acc = _acc_init()  # local accumulators (merged into ``stats`` at the end)
-    el = 0.0
-    wa = w0
-    hc = step_coeffs(dphi / w0, k)
     status = OK
     done = n_periods
-    split = 0.0  # 1.0: step j was just taken by split_step_t
-    j = 0
-    while j < total:
-        while j < total:  # the hot loop: no calls
-            wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
-            m = (j + 1) % n_steps
-            if split == 0.0:
-                ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(
-                    s, g, tab[m, 0], tab[m, 1], tab[m, 2], wb, hc, k, dynamic, max_iter, tol
-                )
-                if not ok:
-                    break
-            h = hc[0]
-            el += h
-            g = guess_t(s, s1, dynamic == 0 or split != 0.0)
-            s = s1
-            if _diverged_t(s):
-                status = DIVERGED
-                done = j // n_steps
-                break
-            acc, tr_prev = _acc_step(acc, h, s, F, region, delta, bd, sp, split, F_prev, reg_prev, tr_prev)
-            F_prev = F
-            reg_prev = region
-            if m == 0:
-                _poincare_store_t(poincare, (j + 1) // n_steps - 1, s, F, delta, bd, sp, cp, c, dynamic)
-            wa = wb
-            split = 0.0
-            j += 1
-        if j == total or status != OK:
-            break
-        # step j again, split into sub-steps (rare: Newton cycled between contact regions); the
-        # hot loop then takes its result
-        st, s1, F, region, delta, bd, sp, cp, _split = split_step_t(
-            s, phi0 + dphi * j, dphi, wa, wb, c, k, runtime_int(dynamic), max_iter, tol
+    if rs[RS_J] >= 0.0:  # continue after split_resume took step j - 1
+        j = np.int64(rs[RS_J])
+        s = _rs_tuple15(rs, RS_S)
+        g = (rs[RS_G], rs[RS_G + 1], rs[RS_G + 2], rs[RS_G + 3], rs[RS_G + 4])
+        acc = _rs_acc(rs)
+        tr_prev = rs[RS_TR_PREV]
+        F_prev = rs[RS_F_PREV]
+        reg_prev = np.int64(rs[RS_REG_PREV])
+        el = rs[RS_EL]
+        wa = rs[RS_WA]
+        o = RS_HC
+        hc = (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6])
+    else:
+        work = np.zeros(WORK_SIZE)
+        if reset_stats:
+            _stats_init(stats)
+        F_prev, reg_prev, delta, bd = start_step(x, a, phi0, w0, c, dynamic, work)
+        s = load_t(x, a)
+        g = (a[0], a[1], a[2], a[3], a[4])
+        tr_prev = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
+        acc = _acc_init()  # local accumulators (merged into ``stats`` at the end)
+        el = 0.0
+        wa = w0
+        hc = step_coeffs(dphi / w0, k)
+        j = 0
+    # a copy of the table allocated here: its row length (3) is then known to the compiler, which
+    # indexes it with a constant stride (with the argument's: +1.5 % time per step, constant model)
+    # (a loop: a slice assignment would compile numba's shape-mismatch error message, ~3 s)
+    tf = np.empty((n_steps, 3))
+    for i in range(n_steps):
+        tf[i, 0] = tab[i, 0]
+        tf[i, 1] = tab[i, 1]
+        tf[i, 2] = tab[i, 2]
+    while j < total:  # the hot loop: no calls
+        wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
+        m = (j + 1) % n_steps
+        ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(
+            s, g, tf[m, 0], tf[m, 1], tf[m, 2], wb, hc, k, dynamic, max_iter, tol
         )
-        if st != OK:
-            el += hc[0]
-            status = st
+        if not ok:
+            break
+        h = hc[0]
+        el += h
+        g = guess_t(s, s1, dynamic == 0)
+        s = s1
+        if _diverged_t(s):
+            status = DIVERGED
             done = j // n_steps
             break
-        split = 1.0
+        acc, tr_prev = _acc_step(acc, h, s, F, region, delta, bd, sp, 0.0, F_prev, reg_prev, tr_prev)
+        F_prev = F
+        reg_prev = region
+        if m == 0:
+            _poincare_store_t(poincare, (j + 1) // n_steps - 1, s, F, delta, bd, sp, cp, c, dynamic)
+        wa = wb
+        j += 1
+    if j < total and status == OK:
+        # step j needs sub-steps (rare: Newton cycled between contact regions): split_resume
+        _rs_save_t(rs, j, s, g, acc, tr_prev, F_prev, reg_prev, el, wa, wb, hc)
+        return SPLIT_PENDING, 0, el
     store_t(s, x, a)
     _acc_store(acc, stats, c, dynamic)
     return status, done, el
+
+
+@kernel
+def split_resume(x, a, phi0, n_steps, c, dynamic, poincare, stats, max_iter, tol, rs):
+    """Take the step :func:`stats_segment` stopped at (SPLIT_PENDING) in sub-steps
+    (:func:`split_step_t`) and do with its result what the segment's loop does with a step; the
+    loop's locals go back into ``rs``. Returns (OK, 0, 0.0) for the segment to go on; if the step
+    fails even in sub-steps, or diverges, ends the interval as the segment would (state into x
+    and a, statistics into ``stats``) and returns (status, periods completed, time elapsed)."""
+    j = np.int64(rs[RS_J])
+    dphi = TWO_PI / n_steps
+    k = step_consts(c)
+    s = _rs_tuple15(rs, RS_S)
+    acc = _rs_acc(rs)
+    wb = rs[RS_WB]
+    o = RS_HC
+    hc = (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6])
+    el = rs[RS_EL]
+    st, s1, F, region, delta, bd, sp, cp, _split = split_step_t(
+        s, phi0 + dphi * j, dphi, rs[RS_WA], wb, c, k, dynamic, max_iter, tol
+    )
+    if st != OK:
+        store_t(s, x, a)
+        _acc_store(acc, stats, c, dynamic)
+        return st, j // n_steps, el + hc[0]
+    # the segment's loop body with split = 1 (Newton's next guess: the split step's acceleration)
+    h = hc[0]
+    el += h
+    g = guess_t(s, s1, True)
+    if _diverged_t(s1):
+        store_t(s1, x, a)
+        _acc_store(acc, stats, c, dynamic)
+        return DIVERGED, j // n_steps, el
+    acc, tr_prev = _acc_step(
+        acc, h, s1, F, region, delta, bd, sp, 1.0, rs[RS_F_PREV], np.int64(rs[RS_REG_PREV]), rs[RS_TR_PREV]
+    )
+    m = (j + 1) % n_steps
+    if m == 0:
+        _poincare_store_t(poincare, (j + 1) // n_steps - 1, s1, F, delta, bd, sp, cp, c, dynamic)
+    _rs_save_t(rs, j + 1, s1, g, acc, tr_prev, F, region, el, wb, wb, hc)
+    return OK, 0, 0.0
 
 
 def integrate_stats_batch(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter,

@@ -17,6 +17,7 @@ TWO_PI = 2.0 * math.pi
 OK = 0
 DIVERGED = 1  # non-finite or exploding state
 NEWTON_FAILED = 2  # Newton failed even after step splitting
+SPLIT_PENDING = 3  # internal (``stats_segment``): stopped before a step that needs splitting
 
 # channels recorded per step by ``integrate_record`` (columns after the 10 states)
 REC_S = 10
@@ -67,6 +68,27 @@ DIVERGENCE_LIMIT = 1e6  # |state| beyond this (b0 units) counts as divergence
 
 
 GEO_SIZE = 14
+
+
+# where ``stats_segment`` leaves its loop's locals when it stops before a step that Newton did not
+# finish (SPLIT_PENDING), and where ``split_resume`` puts them back after taking that step: the
+# step index, the state tuple, Newton's guess for the next step, the accumulators of
+# ``stats._acc_init``, the previous step's translational response, force and region, the elapsed
+# time, omega at both ends of the step and its coefficients (``newmark.step_coeffs``).
+# RS_J = -1 starts a new interval.
+RS_J = 0
+RS_S = 1
+RS_G = RS_S + 15
+RS_ACC = RS_G + 5
+N_LOOP_ACC = 21  # length of stats._acc_init()
+RS_TR_PREV = RS_ACC + N_LOOP_ACC
+RS_F_PREV = RS_TR_PREV + 1
+RS_REG_PREV = RS_F_PREV + 1
+RS_EL = RS_REG_PREV + 1
+RS_WA = RS_EL + 1
+RS_WB = RS_WA + 1
+RS_HC = RS_WB + 1
+RS_SIZE = RS_HC + 7
 
 
 WORK_SIZE = 80
