@@ -24,6 +24,9 @@ Run:  python benchmarks/demand_gap.py [--maps] [--env-episodes 20 --seed 9001] [
   episodes), and the interquartile mean over runs x episodes with its 95 % stratified-bootstrap interval
   (rliable's method, ``stock_ppo.iqm_ci``).
 
+``--terms``: each policy's episode return split into its reward terms (``info["reward_*"]`` summed over the
+episode, mean over the episodes), e.g. the rate charge of a jittering speed reference.
+
 ``--set`` overrides task settings (JSON values), e.g. ``--set w_demand=0`` or
 ``--set 'demand_range=[0.1, 3.0]'``, to reproduce the design comparison of docs/ENVIRONMENT.md.
 """
@@ -73,6 +76,29 @@ def edge_seeker(cfg, floor: float = 1.15, up: float = 0.02, back: float = 0.1, c
     return EdgeSeeker(cfg)
 
 
+def term_sums(policy, cfg, episodes: int, seed: int) -> dict[str, float]:
+    """Mean over episodes ``seed``.. of each reward term summed over the episode (the rollout of
+    ``gear_env.evaluation.run_episode``, same seeds and calls)."""
+    from gear_env.env import GearSpeedEnv
+
+    env = GearSpeedEnv(cfg)
+    keys = env._core.terms.reward_keys
+    tot = dict.fromkeys(keys, 0.0)
+    for k in range(episodes):
+        obs, info = env.reset(seed=seed + k)
+        if hasattr(policy, "observe_episode"):
+            policy.observe_episode(env.episode)
+        state, start, done = None, np.ones((1,), bool), False
+        while not done:
+            action, state = policy.predict(obs[None, :], state=state, episode_start=start, deterministic=True)
+            start = np.zeros((1,), bool)
+            obs, _, term, trunc, info = env.step(np.asarray(action, np.float32).reshape(1))
+            for key in keys:
+                tot[key] += info[key] / episodes
+            done = term or trunc
+    return tot
+
+
 def quasi_static(cfg, n_demands: int = 25) -> dict:
     """Per-step oracle and fixed (robust) values over the family sample, duty levels and demand grid."""
     from agents.episode_oracle import cost_map, family_sample
@@ -112,6 +138,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--policy", action="append", default=[], help="extra policy spec (e.g. pretrained, RUN_DIR)")
     ap.add_argument("--seeds-json", help="output of benchmarks/pretrained_seeds.py for this task")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=JSON", help="override a task setting")
+    ap.add_argument("--terms", action="store_true", help="also split each return into its reward terms")
     ap.add_argument("--json", metavar="PATH")
     args = ap.parse_args(argv)
 
@@ -159,6 +186,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{len(R['oracle'])} episodes"
         )
         out["env"] = {s: R[s].tolist() for s in specs}
+        if args.terms:
+            sums = {s: term_sums(pols[s], cfg, args.env_episodes, args.seed) for s in specs if s != "random"}
+            keys = list(next(iter(sums.values())))
+            print("reward terms per episode (mean): " + ", ".join(k.removeprefix("reward_") for k in keys))
+            for s, t in sums.items():
+                print(f"  {s:14s} " + " ".join(f"{t[k]:7.2f}" for k in keys))
+            out["terms"] = sums
     if args.seeds_json:
         from stock_ppo import iqm_ci
 

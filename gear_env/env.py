@@ -143,6 +143,9 @@ class GearSpeedEnv(gym.Env):
       ``gym.make("GearSpeed-v1", reference_filter=1.0)`` is the 2026-12-01 version.
     * GearSpeedDemand-v0: the first version of the demand task (family: load x0.4-1.5, ``e_m1``
       x0.25-2; demand band ``demand_range=(1.2, 1.8)``; both settled before the first release).
+      Changed in place on 2026-12-02 (issue #16 open): ``reference_filter=0.1`` (was 1.0) and
+      ``memory_steps=20`` (was 0: the observation gains ``trouble_omega``, ``trouble_recency``,
+      ``prev_force_rms``, ``prev_contact_loss``); the shipped policy was retrained on it.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}

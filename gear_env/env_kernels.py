@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit
 
 from . import kernels as K
-from .env_terms import COST_COLUMN, FEATURE_CLIP, IX, N_INFO, STATE_CLIP, F, P, R
+from .env_terms import COST_COLUMN, FEATURE_CLIP, IX, N_INFO, STATE_CLIP, TROUBLE_CONTACT, F, P, R
 from .env_terms import INFO_COLUMNS as _INFO_COLUMNS
 from .env_terms import C as C  # the cost terms' columns, used by their formulas
 
@@ -111,6 +111,8 @@ def post_step(rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, S, h
     scale = S[P.defect_scale]
     pps = S[P.periods_per_step]
     has_demand = S[P.demand] != 0.0
+    tau = S[P.memory_steps]
+    decay = math.exp(-1.0 / tau) if tau > 0.0 else 0.0
     for j in range(rows.shape[0]):
         r = rows[j]
         good = ok[j]
@@ -225,9 +227,27 @@ def post_step(rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, S, h
         # entry of env_terms.OBSERVATIONS (Fm[r, F.<name>]); the task's entries are gathered into obs
         if good or is_reset:
             f = Fm[r]
+            frms_feature = _clip(math.log1p(frms), -1.0, FEATURE_CLIP)
+            if tau > 0.0:  # memory: read the previous step's features before they are overwritten below
+                trouble = contact > TROUBLE_CONTACT or drive > 0.0 or back > 0.0 or chaos > 0.5
+                where = _clip(2.0 * (wmean - lo) / span - 1.0, -1.0, 1.0)
+                if is_reset:
+                    f[F.trouble_omega] = where if trouble else 1.0
+                    f[F.trouble_recency] = 1.0 if trouble else 0.0
+                    f[F.prev_force_rms] = frms_feature
+                    f[F.prev_contact_loss] = contact
+                else:
+                    if trouble:  # recency 1: the previous step was troubled too (the spell goes on)
+                        spell = f[F.trouble_recency] == 1.0
+                        f[F.trouble_omega] = min(f[F.trouble_omega], where) if spell else where
+                        f[F.trouble_recency] = 1.0
+                    else:
+                        f[F.trouble_recency] = f[F.trouble_recency] * decay
+                    f[F.prev_force_rms] = f[F.force_rms]
+                    f[F.prev_contact_loss] = f[F.contact_loss]
             f[F.omega] = _clip(2.0 * (wb - lo) / span - 1.0, -1.0, 1.0)
             f[F.domega] = _clip(dw / S[P.max_domega], -1.0, 1.0)
-            f[F.force_rms] = _clip(math.log1p(frms), -1.0, FEATURE_CLIP)
+            f[F.force_rms] = frms_feature
             f[F.force_peak] = _clip(math.log1p(fpeak), -1.0, FEATURE_CLIP)
             f[F.translation_rms] = _clip(math.log1p(tr / tr_ref[r]), -1.0, FEATURE_CLIP)
             f[F.defect] = _clip(math.log1p(defect / scale), -1.0, FEATURE_CLIP)

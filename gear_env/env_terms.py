@@ -355,6 +355,16 @@ def _full_state(cfg: Any) -> bool:
     return cfg.observation == "full"
 
 
+def _has_memory(cfg: Any) -> bool:
+    return cfg.memory_steps > 0.0
+
+
+TROUBLE_CONTACT = 0.02
+"""A step is *troubled* (for the memory features) when its contact-loss fraction exceeds this, it has an
+impact (either side) or its motion is non-periodic (c > 0.5): the edge seeker's test
+(benchmarks/demand_gap.py)."""
+
+
 SETTINGS: tuple[Setting, ...] = (
     # physics
     Setting("params", None, _params, "`GearParams` or dict", "physical parameters (SI); the torques must give a "
@@ -396,6 +406,9 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("poincare_window", 16, integer(9, 1000), "[9, 1000]", "Poincare samples for the defect"),
     Setting("defect_scale", 0.02, real(0.0, 100.0, lo_open=True), "(0, 100]",
             "defect [b0] that counts as fully non-periodic", kernel=float),
+    Setting("memory_steps", 0.0, real(0.0, 1000.0), "[0, 1000]",
+            "time constant [env steps] of the memory features (`trouble_omega`, `trouble_recency`, "
+            "`prev_force_rms`, `prev_contact_loss`); 0: none (the observation carries no history)", kernel=float),
 )  # fmt: skip
 
 REWARDS: tuple[Term, ...] = (
@@ -474,6 +487,17 @@ OBSERVATIONS: tuple[Observation, ...] = (
                     when=_full_state)
         for name in ("X_p", "Y_p", "X_g", "Y_g", "U", "dX_p", "dY_p", "dX_g", "dY_g", "dU")
     ),
+    # memory (memory_steps > 0): what happened before the last step; a step is troubled when its contact loss
+    # > TROUBLE_CONTACT, it has an impact or c > 0.5
+    Observation("trouble_omega", -1.0, 1.0, "(only with `memory_steps` > 0) mean omega of the step where trouble "
+                "last began, scaled like omega; while the trouble lasts, the lowest such omega of the spell (the "
+                "edge when crossing it from above); 1 until trouble is seen in the episode", when=_has_memory),
+    Observation("trouble_recency", 0.0, 1.0, "(only with `memory_steps` > 0) exp(-(steps since the last troubled "
+                "step) / memory_steps): 1 on a troubled step, 0 until trouble is seen", when=_has_memory),
+    Observation("prev_force_rms", 0.0, FEATURE_CLIP, "(only with `memory_steps` > 0) `force_rms` of the previous "
+                "step (of the warm-up itself after a reset)", when=_has_memory),
+    Observation("prev_contact_loss", 0.0, 1.0, "(only with `memory_steps` > 0) `contact_loss` of the previous step "
+                "(of the warm-up itself after a reset)", when=_has_memory),
 )  # fmt: skip
 
 

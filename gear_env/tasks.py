@@ -230,7 +230,7 @@ V1_SETTINGS: dict[str, Any] = {
 """``GearSpeed-v1``: the settings that differ from ``GearSpeed-v0`` (docs/ENVIRONMENT.md says why)."""
 DEMAND_SETTINGS: dict[str, Any] = {
     **V1_SETTINGS,
-    "reference_filter": 1.0,
+    "memory_steps": 20.0,
     "plant_family": {"load": (0.4, 1.5), "e_m1": (0.25, 2.0)},
     "duty_cycle": {"levels": (1.0, 0.6), "segment_steps": (20, 50)},
     "demand": "random",

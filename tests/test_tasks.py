@@ -78,8 +78,13 @@ def test_demand_episode_is_seeded_and_hidden():
     assert env.episode.factors != e1.factors
     fam = env.config.plant_family
     assert fam.load[0] <= e1.factors["load"] <= fam.load[1] and fam.e_m1[0] <= e1.factors["e_m1"] <= fam.e_m1[1]
-    # the observation holds the sensors and the demand, never the plant
-    assert env.observation_names[-1] == "demand" and len(env.observation_names) == 11
+    # the observation holds the sensors, the demand and the memory of past sensors (memory_steps > 0), never
+    # the plant
+    from gear_env.env_core import FULL_STATE_NAMES, SENSOR_NAMES
+
+    memory = ("trouble_omega", "trouble_recency", "prev_force_rms", "prev_contact_loss")
+    assert env.observation_names == (*SENSOR_NAMES, "demand", *memory)
+    assert not set(FULL_STATE_NAMES) & set(env.observation_names)
     # demand levels lie in the speed range and are piecewise constant
     assert np.all((e1.demand >= env.config.omega_min) & (e1.demand <= env.config.omega_max))
 
