@@ -47,7 +47,7 @@ def make_env(env_id: str, gamma: float):
     return thunk
 
 
-def build_agent(obs_dim: int, act_dim: int) -> Any:
+def build_agent(obs_dim: int, act_dim: int, log_std_init: float = 0.0) -> Any:
     """CleanRL's ``Agent``: orthogonal init (gain sqrt 2, 1 for the critic's head, 0.01 for the actor's)."""
     import torch
     from torch import nn
@@ -68,7 +68,7 @@ def build_agent(obs_dim: int, act_dim: int) -> Any:
                 layer_init(nn.Linear(obs_dim, 64)), nn.Tanh(), layer_init(nn.Linear(64, 64)), nn.Tanh(),
                 layer_init(nn.Linear(64, act_dim), std=0.01),
             )  # fmt: skip
-            self.actor_logstd = nn.Parameter(torch.zeros(1, act_dim))
+            self.actor_logstd = nn.Parameter(torch.full((1, act_dim), float(log_std_init)))
 
         def get_value(self, x: Any) -> Any:
             return self.critic(x)
@@ -119,7 +119,7 @@ def train(args: argparse.Namespace) -> tuple[FrozenPolicy, dict[str, Any]]:
     assert isinstance(envs.single_action_space, gym.spaces.Box), "only continuous action space is supported"
     obs_dim = int(np.prod(envs.single_observation_space.shape))
     act_dim = int(np.prod(envs.single_action_space.shape))
-    agent = build_agent(obs_dim, act_dim)
+    agent = build_agent(obs_dim, act_dim, args.log_std_init)
     optimizer = optim.Adam(agent.parameters(), lr=args.learning_rate, eps=1e-5)
 
     obs = torch.zeros((args.num_steps, args.num_envs, obs_dim))
@@ -227,6 +227,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--ent-coef", type=float, default=0.0)
     p.add_argument("--vf-coef", type=float, default=0.5)
     p.add_argument("--max-grad-norm", type=float, default=0.5)
+    p.add_argument("--log-std-init", type=float, default=0.0, help="initial log-std of the actor (CleanRL: 0)")
     p.add_argument("--eval-episodes", type=int, default=20)
     p.add_argument("--eval-seed", type=int, default=9001, help="episode k uses seed EVAL_SEED + k (every policy)")
     p.add_argument("--json", default=None, help="result file to write (refused if it exists)")

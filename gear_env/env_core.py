@@ -115,7 +115,9 @@ class GearSpeedCore:
 
     def __init__(self, config: GearSpeedConfig, n: int, single: bool = False):
         announce_compile(
-            "env_kernels", "the environment's kernels", "30 s on an idle 2-core machine, several times that under load"
+            "env_kernels",
+            "the environment's kernels",
+            "10-25 s on an idle 2-core machine, several times that under load",
         )
         self.config = cfg = config
         self.n = n
