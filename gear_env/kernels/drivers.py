@@ -222,21 +222,14 @@ def integrate_stats_lazy(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poi
     """:func:`integrate_stats` (same arguments and results, bit for bit) as a Python loop over
     :func:`stats_segment` and :func:`split_resume`: the step-splitting fallback, a second copy of
     the Newmark step (~5 s of first-call compile), is compiled only when a step first needs it.
-    The entry of :func:`gear_env.integration.integrate` for one system (simulator, single env)."""
-    rs = np.empty(RS_SIZE)
-    rs[RS_J] = -1.0
+    The entry of :func:`gear_env.integration.integrate` for one system (simulator, single env).
+
+    It runs :func:`integrate_stats_tab`'s own Python source (``py_func``), so the loop is written once:
+    in Python the two kernels it calls are numba dispatchers, each compiled on its first call."""
     tab = _excitation_table(phi0, n_steps, c)
-    st, done, el = stats_segment(
-        x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab, rs
+    return integrate_stats_tab.py_func(
+        x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab
     )
-    while st == SPLIT_PENDING:
-        st, done, el = split_resume(x, a, phi0, n_steps, c, dynamic, poincare, stats, max_iter, tol, rs)
-        if st == OK:
-            st, done, el = stats_segment(
-                x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats,
-                tab, rs,
-            )  # fmt: skip
-    return st, done, el
 
 
 @kernel_inline
