@@ -305,6 +305,43 @@ def test_lazy_entry_matches_the_compiled_loop_bit_for_bit(model, max_iter):
         assert arrays0[3][K.ST_SPLITS] - (0.0 if model == 1 else 7.0) >= 10  # (stats not reset for model 0)
 
 
+@pytest.mark.parametrize(
+    ("speed", "max_iter", "status"),
+    [(4e5, 2, K.DIVERGED), (1e3, 1, K.NEWTON_FAILED)],
+    ids=["diverges-in-the-split-step", "fails-after-earlier-splits"],
+)
+def test_lazy_entry_ends_in_split_resume_like_the_compiled_loop(monkeypatch, speed, max_iter, status):
+    """The interval ends inside ``split_resume`` (the split step diverges, or fails after earlier split
+    steps went through): the lazy entry reports the same status, periods, time, state, accelerations,
+    Poincare rows and statistics as ``integrate_stats``, and the state it returns is finite."""
+    from gear_env.kernels import drivers as D
+
+    p = GearParams()
+    c = K.readonly(p.consts)
+    seen: list = []
+    real = D.split_resume
+
+    def spy(*args):
+        seen.append(real(*args))
+        return seen[-1]
+
+    out = []
+    for f in (K.integrate_stats, K.integrate_stats_lazy):
+        x = default_initial_state(p, "dynamic")
+        x[5:] = speed  # velocities far from the orbit: Newton needs more than max_iter iterations
+        a, pc, st = np.zeros(5), np.zeros((4, K.N_PC)), np.zeros(K.N_STATS)
+        if f is K.integrate_stats_lazy:  # spy on the Python loop's calls (the compiled loop is opaque)
+            monkeypatch.setattr(D, "split_resume", spy)
+        res = f(x, a, 0.0, 1.2, 1.2, 4, 32, c, 1, pc, st, max_iter, 1e-10, True)
+        out.append((res, x, a, pc, st))
+    (r0, *arrays0), (r1, *arrays1) = out
+    assert r0 == r1 and r0[0] == status
+    assert seen and seen[-1] == r1  # the interval ended in split_resume's own return
+    for u, v in zip(arrays0, arrays1, strict=True):
+        np.testing.assert_array_equal(u, v)
+    assert np.all(np.isfinite(arrays1[0])) and np.all(np.isfinite(arrays1[1]))
+
+
 # every name gear_env.kernels had when it was one file (kernels.py, before the split into a package);
 # other modules and branches import them from gear_env.kernels
 _NAMES_BEFORE_SPLIT = """
