@@ -68,7 +68,8 @@ def run(args: argparse.Namespace) -> int:
     n = len(args.schedule) + len(args.policy)
     print(
         f"evaluating {n} polic{'y' if n == 1 else 'ies'} x {args.episodes} episode(s) on {args.env}, "
-        f"seeds {args.seed}..{args.seed + args.episodes - 1} (a fresh numba cache first compiles for about a minute)",
+        f"seeds {args.seed}..{args.seed + args.episodes - 1} "
+        "(a fresh numba cache first compiles for 10-30 s, longer under load)",
         flush=True,
     )
     from ..env_config import task_config
