@@ -355,7 +355,6 @@ def _integrate(
     r_old = K.runtime_int(R_OLD)  # not literals: one compiled copy of _retire
     r_s = K.runtime_int(R_S)
     resume = pos[P_J] >= 0
-    e0 = pos[P_E0] if resume else 0
     if resume:  # continue after the split step of lane pos[P_EL]
         for r in range(N_ROWS):
             for i in range(LANES):
@@ -364,7 +363,7 @@ def _integrate(
             for q in range(3):
                 for i in range(LANES):
                     TB[r, q, i] = STB[r, q, i]
-    while e0 < n:
+    for e0 in range(pos[P_E0] if resume else 0, n, LANES):
         nl = min(LANES, n - e0)
         nl = (nl + PAD - 1) // PAD * PAD
         j0 = 0
@@ -431,7 +430,6 @@ def _integrate(
         for el in range(nl):
             if B[Q_LIVE, el] != 0.0:
                 _retire(B, el, e0 + el, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
-        e0 += LANES
     return K.OK
 
 
