@@ -9,8 +9,11 @@ model's Taylor update, the statistics) is a loop over lanes without calls or ear
 LLVM vectorises (4 lanes per AVX2 instruction). The rare lanes whose first Newton iteration did
 not finish (a contact change inside the step, a long step at low omega, a step to be split, the
 friction extension) are then redone one by one with
-the scalar ``kernels.newmark_step_t``, which repeats the same first iteration and goes on; so
-every lane follows exactly the arithmetic of the scalar kernel.
+the scalar Newton iteration (``kernels.newmark_try_t``), which repeats the same first iteration
+and goes on; a step that Newton does not finish at all (rarer still) stops the kernel, is split
+into sub-steps from Python (:func:`_split_lane`, compiled on first need, as
+``kernels.split_resume`` for one system) and the kernel goes on. So every lane follows exactly
+the arithmetic of the scalar kernel.
 
 Why it matters: a Newmark step of the dynamic model is ~300 floating-point operations with 2-4
 divisions and square roots, limited by instruction throughput (``benchmarks/kernel_interleave.py``
