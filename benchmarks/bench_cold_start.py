@@ -5,6 +5,11 @@ Each measurement is a fresh subprocess with an empty ``NUMBA_CACHE_DIR`` (a new 
 * ``v1``: ``gym.make("GearSpeed-v1")``, ``reset()`` and one ``step`` (what a new user waits for;
   the target of issue #18 is 30 s on the 2-vCPU VM);
 * ``env``: the same for ``GearSpeed-v0``;
+* ``vec``: ``gym.make_vec("GearSpeed-v1", num_envs=8, vectorization_mode="vector_entry_point")``,
+  ``reset()`` and one ``step`` (the SIMD lanes kernel);
+* ``v1vec``: ``vec`` after ``v1`` in the same process (only the vector env's part is timed: what
+  the vector env compiles beyond the kernels that the single env compiled; its "import" column
+  includes the single env);
 * ``sim``: ``GearSimulator(...).advance(2)`` and ``simulate(...)`` for both backlash models.
 
 With ``--ref REF`` the same is measured, interleaved (A B B A ...), on the ``gear_env`` of another
@@ -13,7 +18,7 @@ single-threaded: wall seconds grow with the load of the machine (printed with th
 (user + sys) much less, so both are printed: the first call's CPU seconds (measured in the child)
 and the whole child process's (imports included, from ``os.wait4``); the summary compares CPU.
 
-    python benchmarks/bench_cold_start.py [--rounds 1] [--ref main] [--only v1 env sim]
+    python benchmarks/bench_cold_start.py [--rounds 1] [--ref main] [--only v1 env sim vec v1vec]
 """
 
 from __future__ import annotations
@@ -44,8 +49,29 @@ t2 = time.perf_counter()
 print(f"{t1 - t0:.3f} {t2 - t1:.3f} {time.process_time() - c1:.3f}")
 """
 
+_VEC_CHILD = r"""
+import time
+t0 = time.perf_counter()
+import gymnasium as gym
+import gear_env
+t1 = time.perf_counter()
+if SINGLE_FIRST:
+    e = gym.make("GearSpeed-v1")
+    e.reset(seed=0)
+    e.step(e.action_space.sample())
+    t1 = time.perf_counter()
+c1 = time.process_time()
+v = gym.make_vec("GearSpeed-v1", num_envs=8, vectorization_mode="vector_entry_point")
+v.reset(seed=0)
+v.step(v.action_space.sample())
+t2 = time.perf_counter()
+print(f"{t1 - t0:.3f} {t2 - t1:.3f} {time.process_time() - c1:.3f}")
+"""
+
 _CHILDREN = {
     "env": _ENV_CHILD.replace("ENV_ID", "GearSpeed-v0"),
+    "vec": _VEC_CHILD.replace("SINGLE_FIRST", "False"),
+    "v1vec": _VEC_CHILD.replace("SINGLE_FIRST", "True"),
     "v1": _ENV_CHILD.replace("ENV_ID", "GearSpeed-v1"),
     "sim": r"""
 import time

@@ -9,8 +9,11 @@ model's Taylor update, the statistics) is a loop over lanes without calls or ear
 LLVM vectorises (4 lanes per AVX2 instruction). The rare lanes whose first Newton iteration did
 not finish (a contact change inside the step, a long step at low omega, a step to be split, the
 friction extension) are then redone one by one with
-the scalar ``kernels.newmark_step_t``, which repeats the same first iteration and goes on; so
-every lane follows exactly the arithmetic of the scalar kernel.
+the scalar Newton iteration (``kernels.newmark_try_t``), which repeats the same first iteration
+and goes on; a step that Newton does not finish at all (rarer still) stops the kernel, is split
+into sub-steps from Python (:func:`_split_lane`, compiled on first need, as
+``kernels.split_resume`` for one system) and the kernel goes on. So every lane follows exactly
+the arithmetic of the scalar kernel.
 
 Why it matters: a Newmark step of the dynamic model is ~300 floating-point operations with 2-4
 divisions and square roots, limited by instruction throughput (``benchmarks/kernel_interleave.py``
@@ -213,22 +216,32 @@ def _stats_pass(B, nl):
 
 @kernel
 def _redo_lane(B, TB, el, m, j, dphi, c, dynamic, max_iter, tol):
-    """Step j of lane el again from its pre-step state (R_OLD rows) with the scalar kernel
-    (``kernels.newmark_step_t``: the same first Newton iteration, then more, then step splitting)
-    and store the result like :func:`_first_pass`. Returns the step's status. Compiled apart from
-    the vectorised loops (it is rare, and inlining it doubles the compile time)."""
+    """Step j of lane el again from its pre-step state (R_OLD rows) with the scalar Newton
+    iteration (``kernels.newmark_try_t``: the same first iteration, then more) and store the
+    result like :func:`_first_pass`. Returns OK, or SPLIT_PENDING if Newton does not finish the
+    step: then :func:`_split_lane`, compiled on first need, takes it in sub-steps (as
+    ``kernels.newmark_step_t`` would). Compiled apart from the vectorised loops (it is rare, and
+    inlining it doubles the compile time)."""
     k = _lane_k(B, el)
     wa = B[Q_WA, el]
     wb = B[O_WB, el]
     hc = K.step_coeffs(2.0 * dphi / (wa + wb), k)
     s = _lane_s(B, el, R_OLD)
-    st, s1, F, region, delta, bd, sp, cp, split = K.newmark_step_t(
-        s, _lane_g(B, el, R_OLD + K.NSTATE + K.NDOF), dphi * j, dphi, TB[m, 0, el], TB[m, 1, el], TB[m, 2, el],
-        wa, wb, hc, c, k, dynamic, max_iter, tol,
+    ok, s1, F, region, delta, bd, sp, cp = K.newmark_try_t(
+        s, _lane_g(B, el, R_OLD + K.NSTATE + K.NDOF), TB[m, 0, el], TB[m, 1, el], TB[m, 2, el], wb, hc, k, dynamic,
+        max_iter, tol,
     )  # fmt: skip
-    if st != K.OK:
-        return st
-    ng = K.guess_t(s, s1, split or dynamic == 0)
+    if not ok:
+        return K.SPLIT_PENDING
+    _store_lane(B, el, s, s1, F, region, delta, bd, sp, cp, 0, dynamic)
+    return K.OK
+
+
+@kernel_inline
+def _store_lane(B, el, s, s1, F, region, delta, bd, sp, cp, split, dynamic):
+    """Lane el's step result (new state tuple s1 from s) into the block buffer, as
+    :func:`_first_pass` stores it."""
+    ng = K.guess_t(s, s1, split != 0 or dynamic == 0)
     for i in range(K.NSTATE + K.NDOF):
         B[R_S + i, el] = s1[i]
     for i in range(K.NDOF):
@@ -240,6 +253,25 @@ def _redo_lane(B, TB, el, m, j, dphi, c, dynamic, max_iter, tol):
     B[O_SP, el] = sp
     B[O_CP, el] = cp
     B[O_SPLIT, el] = float(split)
+
+
+@kernel
+def _split_lane(B, el, j, dphi, c, dynamic, max_iter, tol):
+    """Step j of lane el (block buffer B as :func:`_integrate` saved it at SPLIT_PENDING) in
+    2, 4, ... sub-steps (``kernels.split_step_t``), stored like :func:`_redo_lane`. Returns the
+    step's status. Called from Python (:func:`integrate_stats_lanes`), so the second copy of the
+    Newmark step in ``split_step_t`` (~5-9 s of compile) is compiled only when a step first needs
+    it, and is the copy that the single-system entry (``kernels.split_resume``) uses."""
+    k = _lane_k(B, el)
+    wa = B[Q_WA, el]
+    wb = B[O_WB, el]
+    s = _lane_s(B, el, R_OLD)
+    st, s1, F, region, delta, bd, sp, cp, split = K.split_step_t(
+        s, dphi * j, dphi, wa, wb, c, k, dynamic, max_iter, tol
+    )
+    if st != K.OK:
+        return st
+    _store_lane(B, el, s, s1, F, region, delta, bd, sp, cp, split, dynamic)
     return K.OK
 
 
@@ -272,7 +304,8 @@ def _load_block(B, TB, nl, e0, X, A, W0, W1, total, n_steps, C, dynamic, status,
                 TB[r, i, el] = tab[r, i]
         x = X[e].copy()
         a = A[e].copy()
-        F0, reg0, _d, _b = K.start_step(x, a, 0.0, W0[e], c, dynamic, work)
+        # runtime_int: the copy of start_step that the single-system kernels use, not one for the literal
+        F0, reg0, _d, _b = K.start_step(x, a, 0.0, W0[e], c, K.runtime_int(dynamic), work)
         for i in range(K.NSTATE):
             B[R_S + i, el] = x[i]
         for i in range(K.NDOF):
@@ -295,38 +328,95 @@ def _load_block(B, TB, nl, e0, X, A, W0, W1, total, n_steps, C, dynamic, status,
             status[e] = K.OK
 
 
+P_E0, P_J, P_EL, P_ST = range(4)
+"""Where :func:`_integrate` stopped at SPLIT_PENDING (entries of its ``pos`` argument): first
+system of the block, step, lane; P_ST: the status of that lane's step (:func:`_split_lane`) when
+the call that continues comes in."""
+
+
 @kernel_inline
-def _integrate(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol):
+def _integrate(
+    X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
+):
+    """The loop of :func:`integrate_stats_lanes`, up to a lane whose step Newton does not finish.
+
+    ``done`` (n,) periods completed (filled with n_periods by the caller). ``pos[P_J] < 0`` starts
+    the batch. At a lane step that needs splitting the block (buffers B and TB) is saved into
+    SB and STB, its place into ``pos``, and SPLIT_PENDING is returned; the caller takes that step
+    (:func:`_split_lane` on SB), writes its status into pos[P_ST], and a call with the same
+    arguments continues with the next lane of the step. Returns OK at the end.
+
+    B and TB are allocated here (not taken from the caller) so that their row strides are
+    compile-time constants (see LANES).
+    """
     n = X.shape[0]
     total = n_periods * n_steps
     dphi = K.TWO_PI / n_steps
     B = np.empty((N_ROWS, LANES))
     TB = np.empty((n_steps, 3, LANES))
     work = np.zeros(K.WORK_SIZE)
-    done = np.full(n, n_periods, np.int64)
-    for e0 in range(0, n, LANES):
+    r_old = K.runtime_int(R_OLD)  # not literals: one compiled copy of _retire
+    r_s = K.runtime_int(R_S)
+    resume = pos[P_J] >= 0
+    if resume:  # continue after the split step of lane pos[P_EL]
+        for r in range(N_ROWS):
+            for i in range(LANES):
+                B[r, i] = SB[r, i]
+        for r in range(n_steps):
+            for q in range(3):
+                for i in range(LANES):
+                    TB[r, q, i] = STB[r, q, i]
+    for e0 in range(pos[P_E0] if resume else 0, n, LANES):
         nl = min(LANES, n - e0)
         nl = (nl + PAD - 1) // PAD * PAD
-        _load_block(B, TB, nl, e0, X, A, W0, W1, total, n_steps, C, dynamic, status, work)
-        for j in range(total):
+        j0 = 0
+        if resume:
+            j0 = pos[P_J]
+        else:
+            _load_block(B, TB, nl, e0, X, A, W0, W1, total, n_steps, C, dynamic, status, work)
+        for j in range(j0, total):
             m = (j + 1) % n_steps
-            _first_pass(B, TB, nl, m, j + 1.0, dphi, dynamic, tol)
+            el0 = 0
+            if resume:  # lane pos[P_EL]'s step was taken by _split_lane
+                resume = False
+                el0 = pos[P_EL]
+                st = pos[P_ST]
+                if st != K.OK:
+                    e = e0 + el0
+                    status[e] = st
+                    done[e] = j // n_steps
+                    _retire(B, el0, e, r_old, X, A, stats, elapsed, B[Q_EL, el0] + B[O_H, el0], C[e], dynamic)
+                el0 += 1
+            else:
+                _first_pass(B, TB, nl, m, j + 1.0, dphi, dynamic, tol)
             # lanes whose first Newton iteration did not finish: the scalar step from the start
-            for el in range(nl):
+            for el in range(el0, nl):
                 if B[Q_LIVE, el] == 0.0 or B[O_DONE, el] != 0.0:
                     continue
                 e = e0 + el
                 st = _redo_lane(B, TB, el, m, j, dphi, C[e], dynamic, max_iter, tol)
+                if st == K.SPLIT_PENDING:
+                    for r in range(N_ROWS):
+                        for i in range(LANES):
+                            SB[r, i] = B[r, i]
+                    for r in range(n_steps):
+                        for q in range(3):
+                            for i in range(LANES):
+                                STB[r, q, i] = TB[r, q, i]
+                    pos[P_E0] = e0
+                    pos[P_J] = j
+                    pos[P_EL] = el
+                    return K.SPLIT_PENDING
                 if st != K.OK:
                     status[e] = st
                     done[e] = j // n_steps
-                    _retire(B, el, e, R_OLD, X, A, stats, elapsed, B[Q_EL, el] + B[O_H, el], C[e], dynamic)
+                    _retire(B, el, e, r_old, X, A, stats, elapsed, B[Q_EL, el] + B[O_H, el], C[e], dynamic)
             _check_pass(B, nl)
             for el in range(nl):
                 if B[O_BAD, el] != 0.0 and B[Q_LIVE, el] != 0.0:
                     status[e0 + el] = K.DIVERGED
                     done[e0 + el] = j // n_steps
-                    _retire(B, el, e0 + el, R_S, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
+                    _retire(B, el, e0 + el, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
             _stats_pass(B, nl)
             if m == 0:
                 p = (j + 1) // n_steps - 1
@@ -342,8 +432,8 @@ def _integrate(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, st
                     poincare[e, p, K.PC_FORCE] = B[O_F, el]
         for el in range(nl):
             if B[Q_LIVE, el] != 0.0:
-                _retire(B, el, e0 + el, R_S, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
-    return done
+                _retire(B, el, e0 + el, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
+    return K.OK
 
 
 @kernel
@@ -380,13 +470,21 @@ def _finish_stats(B, e, stats, c, dynamic):
 
 
 @kernel
-def _lanes_constant(X, A, W0, W1, n_periods, n_steps, C, poincare, stats, status, elapsed, max_iter, tol):
-    return _integrate(X, A, W0, W1, n_periods, n_steps, C, 0, poincare, stats, status, elapsed, max_iter, tol)
+def _lanes_constant(
+    X, A, W0, W1, n_periods, n_steps, C, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
+):
+    return _integrate(
+        X, A, W0, W1, n_periods, n_steps, C, 0, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
+    )
 
 
 @kernel
-def _lanes_dynamic(X, A, W0, W1, n_periods, n_steps, C, poincare, stats, status, elapsed, max_iter, tol):
-    return _integrate(X, A, W0, W1, n_periods, n_steps, C, 1, poincare, stats, status, elapsed, max_iter, tol)
+def _lanes_dynamic(
+    X, A, W0, W1, n_periods, n_steps, C, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
+):
+    return _integrate(
+        X, A, W0, W1, n_periods, n_steps, C, 1, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
+    )
 
 
 def integrate_stats_lanes(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter,
@@ -399,9 +497,23 @@ def integrate_stats_lanes(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare
     (n, n_periods, N_PC) (rows of periods a failed system did not reach are left as they were),
     stats (n, N_STATS), status (n,) int64, elapsed (n,) natural time. Every system starts at mesh
     phase 0. Returns the periods completed per system (n,). One compiled kernel per model (a
-    Python-level choice, so that only the model in use is compiled: each takes ~40 s the first
+    Python-level choice, so that only the model in use is compiled: each takes ~15-30 s the first
     time, then loads from the disk cache).
+
+    A Python loop: the kernel stops at a lane step that Newton does not finish (rare),
+    :func:`_split_lane` takes that step in sub-steps and the kernel goes on, the same operations
+    in the same order as a compiled call of the fallback would do, so the step-splitting code
+    is compiled only when first needed.
     """
     fn = _lanes_constant if dynamic == 0 else _lanes_dynamic
     C = K.readonly(C)  # one compiled signature whoever calls (see kernels.readonly)
-    return fn(X, A, W0, W1, n_periods, n_steps, C, poincare, stats, status, elapsed, max_iter, tol)
+    done = np.full(X.shape[0], n_periods, np.int64)
+    SB = np.empty((N_ROWS, LANES))
+    STB = np.empty((n_steps, 3, LANES))
+    pos = np.full(4, -1, np.int64)
+    args = (X, A, W0, W1, n_periods, n_steps, C, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos)
+    while fn(*args) == K.SPLIT_PENDING:
+        el = int(pos[P_EL])
+        c = C[int(pos[P_E0]) + el]
+        pos[P_ST] = _split_lane(SB, el, int(pos[P_J]), K.TWO_PI / n_steps, c, int(dynamic), max_iter, tol)
+    return done

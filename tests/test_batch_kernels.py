@@ -24,25 +24,25 @@ def _systems(n, model, seed, friction_rows=(), kappas=(0.2,)):
     return X, np.zeros((n, K.NDOF)), C
 
 
-def _run(fn, code, X, A, W0, W1, C, periods, n_steps):
+def _run(fn, code, X, A, W0, W1, C, periods, n_steps, max_iter=NEWTON_MAX_ITER):
     n = X.shape[0]
     pc = np.zeros((n, periods, K.N_PC))
     st = np.zeros((n, K.N_STATS))
     status = np.full(n, -1, np.int64)
     el = np.zeros(n)
-    fn(X, A, W0, W1, periods, n_steps, C, code, pc, st, status, el, NEWTON_MAX_ITER, NEWTON_TOL)
+    fn(X, A, W0, W1, periods, n_steps, C, code, pc, st, status, el, max_iter, NEWTON_TOL)
     return dict(X=X, A=A, poincare=pc, stats=st, status=status, elapsed=el)
 
 
-def _compare(n, model, W0, W1, periods=6, n_steps=64, X=None, repeats=2, **kw):
+def _compare(n, model, W0, W1, periods=6, n_steps=64, X=None, repeats=2, max_iter=NEWTON_MAX_ITER, **kw):
     code = model_code(model)
     X0, A0, C = _systems(n, model, seed=n, **kw)
     if X is not None:
         X0 = X
     xa, aa, xb, ab = X0.copy(), A0.copy(), X0.copy(), A0.copy()
     for _ in range(repeats):  # a second interval starts from the state the first one left
-        ra = _run(K.integrate_stats_batch, np.full(n, code, np.int64), xa, aa, W0, W1, C, periods, n_steps)
-        rb = _run(BK.integrate_stats_lanes, code, xb, ab, W0, W1, C, periods, n_steps)
+        ra = _run(K.integrate_stats_batch, np.full(n, code, np.int64), xa, aa, W0, W1, C, periods, n_steps, max_iter)
+        rb = _run(BK.integrate_stats_lanes, code, xb, ab, W0, W1, C, periods, n_steps, max_iter)
         for key in ra:
             np.testing.assert_array_equal(ra[key], rb[key], err_msg=f"{model}: {key} differs")
     return ra
@@ -72,6 +72,24 @@ def test_lanes_kernel_failures_match_the_scalar_kernel():
     W0 = np.full(n, 1.2)
     r = _compare(n, "dynamic", W0, W0 + 0.01, X=X0, repeats=1)
     assert r["status"].tolist() == [K.OK, K.DIVERGED, K.OK, K.OK, K.NEWTON_FAILED, K.OK]
+
+
+@pytest.mark.parametrize("model", ["constant", "dynamic"])
+def test_lanes_kernel_split_steps_match_the_scalar_kernel(model):
+    # max_iter=1: contact changes need splitting, in both blocks (16 + 3 rows, omega 0.4-0.94);
+    # the lanes kernel stops at each, the split step is taken from Python (_split_lane) and the
+    # kernel goes on; row 5 is NaN (its split fails too), row 7 explodes (diverges, or its
+    # Newton fails first)
+    n = 19
+    X0, _, _ = _systems(n, model, seed=n)
+    X0[5, 0] = np.nan
+    X0[7, 5:] = 4e5
+    W0 = 0.4 + 0.06 * (np.arange(n) % 10)
+    r = _compare(n, model, W0, W0 + 0.02, X=X0, periods=20, n_steps=32, max_iter=1)
+    splits = r["stats"][:, K.ST_SPLITS]
+    assert r["status"][5] == K.NEWTON_FAILED and r["status"][7] in (K.DIVERGED, K.NEWTON_FAILED)
+    assert (splits[:16] > 0).sum() >= 4 and (splits[16:] > 0).any()
+    assert (r["status"] == K.OK).sum() == n - 2
 
 
 def test_lanes_kernel_handles_odd_step_counts_and_one_row():

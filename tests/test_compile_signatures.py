@@ -3,7 +3,7 @@
 numba compiles a separate copy of a kernel for every distinct argument type signature: a
 writable instead of a read-only constants array, or a literal ``1`` / ``True`` passed from one
 kernel to another, each cost another 25-50 s of first-call compile. The simulator, the single
-and the small vector environment, the Lyapunov kernel and the scalar batch kernel must all share
+and the vector environments, the Lyapunov kernel and the scalar batch kernel must all share
 one compiled copy (``kernels.readonly``, ``kernels.runtime_true``).
 """
 
@@ -21,6 +21,7 @@ import json
 import gymnasium as gym
 import gear_env.env
 from gear_env import GearSimulator
+from gear_env import batch_kernels as BK
 from gear_env import kernels as K
 from gear_env.analysis.lyapunov import largest_lyapunov
 from gear_env.vector_env import GearSpeedVectorEnv
@@ -33,8 +34,13 @@ largest_lyapunov(1.2, "dynamic", periods=3, transient=1, steps_per_period=32)
 v = GearSpeedVectorEnv(1)  # one sub-env: the scalar batch kernel
 v.reset(seed=0)
 v.step(v.action_space.sample())
-print(json.dumps({n: len(getattr(K, n).overloads) for n in
-                  ("integrate_stats", "integrate_stats_tab", "stats_segment", "split_resume", "static_equilibrium")}))
+v = GearSpeedVectorEnv(8)  # the SIMD lanes kernel (its start_step and split_step_t: the scalar kernels' copies)
+v.reset(seed=0)
+v.step(v.action_space.sample())
+names = ("integrate_stats", "integrate_stats_tab", "stats_segment", "split_resume", "static_equilibrium")
+counts = {n: len(getattr(K, n).overloads) for n in (*names, "start_step", "split_step_t")}
+counts["_retire"] = len(BK._retire.overloads)
+print(json.dumps(counts))
 """
 
 
@@ -52,4 +58,7 @@ def test_one_compiled_signature_per_kernel(tmp_path):
         "stats_segment": 1,  # called from Python (integrate_stats_lazy) and from integrate_stats_tab
         "split_resume": 1,
         "static_equilibrium": 1,
+        "start_step": 1,  # also from the lanes kernel's _load_block (runtime_int, not the literal model code)
+        "split_step_t": 1,  # compiled with split_resume (the Lyapunov kernel); the lanes kernel calls none
+        "_retire": 1,  # lanes: one copy for both row offsets
     }

@@ -405,43 +405,52 @@ def integrate_stats_batch(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare
                           tol):  # fmt: skip
     """Advance a batch of independent systems by n_periods each (one call for a vector env).
 
-    Python entry of :func:`_integrate_stats_batch` (same arguments): passes C read-only, so that
-    every caller shares one compiled copy (see :func:`readonly`).
-    """
-    _integrate_stats_batch(
-        X, A, W0, W1, n_periods, n_steps, readonly(C), dynamic, poincare, stats, status, elapsed, max_iter, tol
-    )
-
-
-@kernel
-def _integrate_stats_batch(
-    X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol
-):
-    """Advance a batch of independent systems by n_periods each (one call for a vector env).
-
     X (n, 10), A (n, 5), W0/W1 (n,), C (n, N_CONSTS) constants per system, dynamic (n,) model
     codes, poincare (n, n_periods, N_PC), stats (n, N_STATS), status (n,) int64 and elapsed (n,)
     outputs. Each system starts at mesh phase 0 (a Poincare section). A system whose status is
     not OK is left in an unspecified state; the caller resets it.
+
+    A Python loop over :func:`_integrate_stats_batch` (the systems one after the other through
+    :func:`stats_segment`) and :func:`split_resume` for a step that needs splitting, as
+    :func:`integrate_stats_lazy` does for one system: the same numbers as calling
+    :func:`integrate_stats` per system, and the fallback is compiled only when first needed. C
+    is passed read-only, so that every caller shares one compiled copy (see :func:`readonly`).
     """
+    C = readonly(C)
+    rs = np.empty(RS_SIZE)
+    rs[RS_J] = -1.0
+    row = np.zeros(1, np.int64)
+    args = (X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol, rs, row)
+    while _integrate_stats_batch(*args) == SPLIT_PENDING:
+        j = int(row[0])
+        st, _done, el = split_resume(
+            X[j], A[j], 0.0, n_steps, C[j], int(dynamic[j]), poincare[j], stats[j], max_iter, tol, rs
+        )
+        if st != OK:  # the system's interval ended in the split step
+            status[j] = st
+            elapsed[j] = el
+            rs[RS_J] = -1.0
+            row[0] = j + 1
+
+
+@kernel
+def _integrate_stats_batch(
+    X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol, rs, row
+):
+    """The loop of :func:`integrate_stats_batch` from system row[0] on (``rs`` as
+    :func:`stats_segment` left it, or rs[RS_J] = -1 for a new interval). Returns OK at the end, or
+    SPLIT_PENDING with row[0] = the system whose step needs splitting."""
     n = X.shape[0]
     reset = runtime_true()  # not the literal True: see runtime_true
-    for j in range(n):
-        st, done, s = integrate_stats(
-            X[j],
-            A[j],
-            0.0,
-            W0[j],
-            W1[j],
-            n_periods,
-            n_steps,
-            C[j],
-            dynamic[j],
-            poincare[j],
-            stats[j],
-            max_iter,
-            tol,
-            reset,
-        )
+    for j in range(row[0], n):
+        st, done, s = stats_segment(
+            X[j], A[j], 0.0, W0[j], W1[j], n_periods, n_steps, C[j], dynamic[j], poincare[j], stats[j], max_iter, tol,
+            reset, _excitation_table(0.0, n_steps, C[j]), rs,
+        )  # fmt: skip
+        if st == SPLIT_PENDING:
+            row[0] = j
+            return SPLIT_PENDING
         status[j] = st
         elapsed[j] = s
+        rs[RS_J] = -1.0
+    return OK
