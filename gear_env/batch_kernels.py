@@ -275,6 +275,19 @@ def _split_lane(B, el, j, dphi, c, dynamic, max_iter, tol):
     return K.OK
 
 
+@kernel_inline
+def _copy_block(B, TB, B_to, TB_to, n_steps):
+    """Copy a block's buffers (B: (N_ROWS, LANES), TB: (n_steps, 3, LANES)) into B_to, TB_to: saved
+    before a split step is handed to Python, restored when the kernel resumes."""
+    for r in range(N_ROWS):
+        for i in range(LANES):
+            B_to[r, i] = B[r, i]
+    for r in range(n_steps):
+        for q in range(3):
+            for i in range(LANES):
+                TB_to[r, q, i] = TB[r, q, i]
+
+
 @kernel
 def _retire(B, el, e, r, X, A, stats, elapsed, el_time, c, dynamic):
     """Write lane el's state (from rows r), statistics and elapsed time to system e."""
@@ -359,13 +372,7 @@ def _integrate(
     r_s = K.runtime_int(R_S)
     resume = pos[P_J] >= 0
     if resume:  # continue after the split step of lane pos[P_EL]
-        for r in range(N_ROWS):
-            for i in range(LANES):
-                B[r, i] = SB[r, i]
-        for r in range(n_steps):
-            for q in range(3):
-                for i in range(LANES):
-                    TB[r, q, i] = STB[r, q, i]
+        _copy_block(SB, STB, B, TB, n_steps)
     for e0 in range(pos[P_E0] if resume else 0, n, LANES):
         nl = min(LANES, n - e0)
         nl = (nl + PAD - 1) // PAD * PAD
@@ -396,13 +403,7 @@ def _integrate(
                 e = e0 + el
                 st = _redo_lane(B, TB, el, m, j, dphi, C[e], dynamic, max_iter, tol)
                 if st == K.SPLIT_PENDING:
-                    for r in range(N_ROWS):
-                        for i in range(LANES):
-                            SB[r, i] = B[r, i]
-                    for r in range(n_steps):
-                        for q in range(3):
-                            for i in range(LANES):
-                                STB[r, q, i] = TB[r, q, i]
+                    _copy_block(B, TB, SB, STB, n_steps)
                     pos[P_E0] = e0
                     pos[P_J] = j
                     pos[P_EL] = el
