@@ -45,8 +45,13 @@ import numpy as np
 ENV_ID = "GearSpeedDemand-v0"
 
 
-def edge_seeker(cfg, floor: float = 1.15, up: float = 0.02, back: float = 0.1, contact: float = 0.02):
-    """The sensor-only edge seeker described in the module docstring (``predict`` of the baselines)."""
+def edge_seeker(cfg, floor: float = 1.15, up: float = 0.02, back: float = 0.1, contact: float | None = None):
+    """The sensor-only edge seeker described in the module docstring (``predict`` of the baselines);
+    ``contact``: the contact-loss fraction that counts as trouble (default ``env_terms.TROUBLE_CONTACT``,
+    the threshold of the environment's memory features)."""
+    from gear_env.env_terms import TROUBLE_CONTACT
+
+    contact = TROUBLE_CONTACT if contact is None else contact
     from agents.baselines import (
         OBS_BACK_IMPACTS,
         OBS_CONTACT,
@@ -80,22 +85,18 @@ def term_sums(policy, cfg, episodes: int, seed: int) -> dict[str, float]:
     """Mean over episodes ``seed``.. of each reward term summed over the episode (the rollout of
     ``gear_env.evaluation.run_episode``, same seeds and calls)."""
     from gear_env.env import GearSpeedEnv
+    from gear_env.evaluation import run_episode
 
     env = GearSpeedEnv(cfg)
     keys = env._core.terms.reward_keys
     tot = dict.fromkeys(keys, 0.0)
+
+    def add(info):
+        for key in keys:
+            tot[key] += info[key] / episodes
+
     for k in range(episodes):
-        obs, info = env.reset(seed=seed + k)
-        if hasattr(policy, "observe_episode"):
-            policy.observe_episode(env.episode)
-        state, start, done = None, np.ones((1,), bool), False
-        while not done:
-            action, state = policy.predict(obs[None, :], state=state, episode_start=start, deterministic=True)
-            start = np.zeros((1,), bool)
-            obs, _, term, trunc, info = env.step(np.asarray(action, np.float32).reshape(1))
-            for key in keys:
-                tot[key] += info[key] / episodes
-            done = term or trunc
+        run_episode(env, policy, seed + k, on_step=add)
     return tot
 
 

@@ -7,7 +7,7 @@ Also importable from :mod:`gear_env.evaluation`.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -17,8 +17,11 @@ from .env_config import GearSpeedConfig
 from .report import EpisodeResult, EvaluationReport
 
 
-def run_episode(env: Any, policy: Any, seed: int | None) -> EpisodeResult:
-    """Roll out one episode of ``policy`` (``predict(obs, state, episode_start, deterministic)``)."""
+def run_episode(
+    env: Any, policy: Any, seed: int | None, on_step: Callable[[dict[str, Any]], None] | None = None
+) -> EpisodeResult:
+    """Roll out one episode of ``policy`` (``predict(obs, state, episode_start, deterministic)``);
+    ``on_step``, if given, is called with each step's ``info`` (e.g. to sum reward terms)."""
     obs, info = env.reset(seed=seed)
     if hasattr(policy, "observe_episode"):  # a privileged baseline (the oracle): it is told the scenario
         policy.observe_episode(env.unwrapped.episode)
@@ -35,6 +38,8 @@ def run_episode(env: Any, policy: Any, seed: int | None) -> EpisodeResult:
         ret += r
         omegas.append(info["omega"])
         vib.append(info["force_peak"])
+        if on_step is not None:
+            on_step(info)
         done = term or trunc
     q = max(1, len(omegas) // 4)
     return EpisodeResult(

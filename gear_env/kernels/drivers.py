@@ -249,6 +249,13 @@ def _rs_acc(rs):
 
 
 @kernel_inline
+def _rs_hc(rs):
+    """The step coefficients (``newmark.step_coeffs``, 7 floats) saved in rs."""
+    o = RS_HC
+    return (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6])
+
+
+@kernel_inline
 def _rs_save_t(rs, j, s, g, acc, tr_prev, F_prev, reg_prev, el, wa, wb, hc):
     """Write the loop's locals into rs (layout ``RS_*``)."""
     rs[RS_J] = j
@@ -305,8 +312,7 @@ def stats_segment(
         reg_prev = np.int64(rs[RS_REG_PREV])
         el = rs[RS_EL]
         wa = rs[RS_WA]
-        o = RS_HC
-        hc = (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6])
+        hc = _rs_hc(rs)
     else:
         work = np.zeros(WORK_SIZE)
         if reset_stats:
@@ -373,8 +379,7 @@ def split_resume(x, a, phi0, n_steps, c, dynamic, poincare, stats, max_iter, tol
     s = _rs_tuple15(rs, RS_S)
     acc = _rs_acc(rs)
     wb = rs[RS_WB]
-    o = RS_HC
-    hc = (rs[o], rs[o + 1], rs[o + 2], rs[o + 3], rs[o + 4], rs[o + 5], rs[o + 6])
+    hc = _rs_hc(rs)
     el = rs[RS_EL]
     st, s1, F, region, delta, bd, sp, cp, _split = split_step_t(
         s, phi0 + dphi * j, dphi, rs[RS_WA], wb, c, k, dynamic, max_iter, tol
