@@ -168,28 +168,18 @@ MAX_JSON_DEPTH = 64
 """Deepest nesting of arrays/objects accepted in a JSON input."""
 MAX_INT_DIGITS = 40
 """Longest integer literal accepted in a JSON input (digits)."""
+MAX_NUMBER_CHARS = 64
+"""Longest non-integer number literal accepted in a JSON input (characters)."""
 
 
 def read_limited(path: str | os.PathLike, what: str, max_bytes: int = MAX_JSON_BYTES) -> bytes:
-    """The bytes of a regular file of at most ``max_bytes`` (checked before reading); ``ValueError`` otherwise."""
-    p = os.fspath(path)
-    try:
-        with open(p, "rb") as fh:
-            st = os.fstat(fh.fileno())
-            if not stat.S_ISREG(st.st_mode):
-                raise ValueError(f"{what} {p!r} is not a regular file")
-            if st.st_size > max_bytes:
-                raise ValueError(f"{what} {p!r} is {st.st_size:,} bytes; the limit is {max_bytes:,} bytes")
-            data = fh.read(max_bytes + 1)
-    except FileNotFoundError:
-        raise ValueError(f"{what} {p!r} does not exist") from None
-    except IsADirectoryError:
-        raise ValueError(f"{what} {p!r} is a directory, expected a file") from None
-    except OSError as exc:
-        raise ValueError(f"{what} {p!r}: cannot read it ({exc.strerror or exc})") from None
-    if len(data) > max_bytes:
-        raise ValueError(f"{what} {p!r} is larger than the limit of {max_bytes:,} bytes")
-    return data
+    """The bytes of a regular file of at most ``max_bytes`` (checked before reading); ``ValueError`` otherwise.
+
+    A FIFO, directory, device or unreadable file (``/proc/self/mem``) is refused by name without
+    blocking (:func:`gear_env.untrusted.read_regular`)."""
+    from .untrusted import read_regular
+
+    return read_regular(path, what, max_bytes)
 
 
 def _json_depth(text: str) -> int:
@@ -216,7 +206,12 @@ def _json_depth(text: str) -> int:
 
 
 def parse_json_text(text: str, where: str, max_depth: int = MAX_JSON_DEPTH) -> Any:
-    """``json.loads`` with the nesting depth and integer length bounded; ``ValueError`` naming ``where``."""
+    """``json.loads`` with the size, nesting depth and number length bounded; ``ValueError`` naming ``where``.
+
+    The one JSON parser of the package for anything read from a file (configs, schedules, run
+    folders, policies, checkpoints' fingerprints, results files' attributes)."""
+    if len(text) > MAX_JSON_BYTES:
+        raise ValueError(f"{where}: {len(text):,} characters of JSON; the limit is {MAX_JSON_BYTES:,}")
     if _json_depth(text) > max_depth:
         raise ValueError(f"{where} is nested deeper than {max_depth} levels")
 
@@ -225,8 +220,13 @@ def parse_json_text(text: str, where: str, max_depth: int = MAX_JSON_DEPTH) -> A
             raise ValueError(f"{where}: an integer of {len(s)} digits (the limit is {MAX_INT_DIGITS})")
         return int(s)
 
+    def _float(s: str) -> float:
+        if len(s) > MAX_NUMBER_CHARS:
+            raise ValueError(f"{where}: a number of {len(s)} characters (the limit is {MAX_NUMBER_CHARS})")
+        return float(s)
+
     try:
-        return json.loads(text, parse_int=_int)
+        return json.loads(text, parse_int=_int, parse_float=_float)
     except json.JSONDecodeError as exc:
         raise ValueError(f"{where} is not valid JSON: {exc}") from None
     except RecursionError:  # pragma: no cover - the depth check comes first
