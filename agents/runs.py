@@ -245,7 +245,19 @@ class RunFolder:
         """Create the folder, its run marker and its checkpoints/ subfolder (parents too)."""
         self.path.mkdir(parents=True, exist_ok=True)
         self.mark()
-        self._inside(self.checkpoint_dir, CHECKPOINT_DIR).mkdir(exist_ok=True)
+        self.confined(self.checkpoint_dir, CHECKPOINT_DIR).mkdir(exist_ok=True)
+
+    def lock(self) -> Any:
+        """Create the folder if missing and lock it for this process (:class:`gear_env.io.OutputLock`).
+
+        A second process that locks the same folder, by any path (symbolic link included), gets a
+        ValueError at once."""
+        from gear_env.io import OutputLock
+
+        if self.path.exists() and not self.path.is_dir():
+            raise RunFolderError(f"run folder {str(self.path)!r} exists and is not a folder")
+        self.path.mkdir(parents=True, exist_ok=True)
+        return OutputLock(self.path, "run folder")
 
     def mark(self) -> None:
         """Write the run marker (:data:`RUN_MARKER`) if it is missing."""
@@ -287,7 +299,7 @@ class RunFolder:
         _check_config(data, str(self.config_path))
         return data
 
-    def _inside(self, path: Path, what: str) -> Path:
+    def confined(self, path: Path, what: str) -> Path:
         """``path`` if it stays inside the run folder once symbolic links are resolved (RunFolderError if not)."""
         try:
             inside(self.path, path, what)
@@ -297,7 +309,7 @@ class RunFolder:
 
     def _file(self, name: str) -> Path:
         """A file of the run folder, refused if it (or checkpoints/) resolves outside the folder."""
-        return self._inside(self.path / name, name)
+        return self.confined(self.path / name, name)
 
     # ---- checkpoints -------------------------------------------------------------------------
     def checkpoint_paths(self, steps: int) -> tuple[Path, Path]:
@@ -312,8 +324,8 @@ class RunFolder:
             model.save(buf)
             Path(tmp).write_bytes(buf.getvalue())
 
-        self._inside(model_path, model_path.name)
-        self._inside(vecnorm_path, vecnorm_path.name)
+        self.confined(model_path, model_path.name)
+        self.confined(vecnorm_path, vecnorm_path.name)
         atomic_write(model_path, _w_model)
         if vecnorm is not None:
             save_vecnormalize(vecnorm, vecnorm_path)
@@ -323,13 +335,13 @@ class RunFolder:
 
         latest.json is replaced last, so it always names a complete checkpoint. Older checkpoints
         beyond the ``keep`` most recent are deleted. Returns the model path."""
-        self._inside(self.checkpoint_dir, CHECKPOINT_DIR).mkdir(parents=True, exist_ok=True)
+        self.confined(self.checkpoint_dir, CHECKPOINT_DIR).mkdir(parents=True, exist_ok=True)
         mpath, vpath = self.checkpoint_paths(steps)
-        self._inside(mpath, mpath.name)
-        self._inside(vpath, vpath.name)
+        self.confined(mpath, mpath.name)
+        self.confined(vpath, vpath.name)
         self.save_model(model, vecnorm, mpath, vpath)
         latest = {"steps": int(steps), "model": mpath.name, "vecnormalize": vpath.name if vecnorm is not None else None}
-        atomic_write_text(self._inside(self.checkpoint_dir / LATEST_FILE, LATEST_FILE), json.dumps(latest) + "\n")
+        atomic_write_text(self.confined(self.checkpoint_dir / LATEST_FILE, LATEST_FILE), json.dumps(latest) + "\n")
         self._prune(keep, int(steps))
         return mpath
 
@@ -370,7 +382,7 @@ class RunFolder:
         n = 0
         if not self.checkpoint_dir.is_dir():
             return 0
-        self._inside(self.checkpoint_dir, CHECKPOINT_DIR)
+        self.confined(self.checkpoint_dir, CHECKPOINT_DIR)
         for p in self.checkpoint_dir.iterdir():
             if p.name == LATEST_FILE or (p.name.startswith("ckpt_") and p.suffix in (".zip", ".npz", ".pkl")):
                 p.unlink()
@@ -386,7 +398,7 @@ class RunFolder:
             raise RunFolderError(
                 f"cannot resume: no checkpoint in {str(self.checkpoint_dir)!r} ({LATEST_FILE} missing)"
             )
-        self._inside(self.checkpoint_dir, CHECKPOINT_DIR)
+        self.confined(self.checkpoint_dir, CHECKPOINT_DIR)
         lp = str(latest)
         try:
             data = check_keys(

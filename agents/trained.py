@@ -430,6 +430,8 @@ def load_trained_policy(
             f"({str(run.checkpoint_dir)}/ckpt_<steps>.zip) or continue it with "
             f"`gear-env train --out {run.path} --resume`"
         )
+    run.confined(mpath, model_file)
+    run.confined(vpath, vpath.name)
     model = load_ppo_model(mpath, run_config=cfg)
     vecnorm = load_vecnormalize(vpath) if cfg.get("vecnormalize", True) else None
     check_space_compatible(cfg["observation_space"], model.observation_space, "observation", run_dir)
