@@ -38,8 +38,10 @@ def load_zoo_entry(path: str | Path, env_id: str) -> dict[str, Any]:
 
     p = Path(path)
     try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as exc:
+        from gear_env.io import read_limited
+
+        data = yaml.safe_load(read_limited(p, "--hyperparams", 1024 * 1024).decode("utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise ValueError(f"--hyperparams: cannot read {str(p)!r}: {exc}") from None
     if not isinstance(data, dict) or env_id not in data or not isinstance(data[env_id], dict):
         have = sorted(data) if isinstance(data, dict) else []

@@ -70,7 +70,9 @@ def reward_map(
     path = _cache_dir() / f"steady_reward_{key}.json"
     if disk_cache and path.is_file():
         try:
-            data = json.loads(path.read_text(encoding="utf-8"))
+            from gear_env.io import read_json
+
+            data = read_json(path, "steady reward cache")
             w, r = np.asarray(data["omegas"], float), np.asarray(data["reward"], float)
             if w.shape == omegas.shape and np.allclose(w, omegas) and np.all(np.isfinite(r)):
                 _MAP_CACHE[key] = (w, r)

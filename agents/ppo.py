@@ -34,7 +34,7 @@ import numpy as np
 from gear_env.io import atomic_write_text
 
 from .envs import GEAR_ENV_ID, config_to_dict, make_config, make_sb3_vec_env
-from .runs import RunFolder, RunFolderError, check_space_compatible, space_to_dict, versions
+from .runs import RUN_MARKER, RunFolder, RunFolderError, check_space_compatible, is_run_folder, space_to_dict, versions
 
 EVAL_SEED_OFFSET = 1_000_003
 """Evaluation episodes during training use seeds seed + EVAL_SEED_OFFSET + i (never training seeds)."""
@@ -351,6 +351,12 @@ def _start_point(run: RunFolder, opts: TrainOptions, env_config: dict[str, Any])
                 f"{str(run.path)!r} already holds a run; use --resume to continue it, --overwrite to replace it, "
                 f"or choose another --out"
             )
+        if run.path.is_dir() and any(run.path.iterdir()) and not is_run_folder(run.path):
+            raise RunFolderError(
+                f"{str(run.path)!r} is not empty and is not a gear-env run folder (no {RUN_MARKER} marker, and no "
+                "config.json of format gear-env-run/1 beside metrics, a model or checkpoints/latest.json); "
+                "gear-env neither writes into it nor clears it: choose another --out"
+            )
         if opts.overwrite and run.path.is_dir():
             n = run.clear()  # no stale checkpoint may outlive the run it belonged to
             if n and opts.verbose:
@@ -358,7 +364,10 @@ def _start_point(run: RunFolder, opts: TrainOptions, env_config: dict[str, Any])
         run.create()
         return _Start()
     stored = run.read_config()
+    if not is_run_folder(run.path):
+        raise RunFolderError(f"cannot resume {str(run.path)!r}: it is not a gear-env run folder")
     _check_resume(stored, opts, env_config, run.path)
+    run.mark()  # a run folder of an earlier release gets its marker
     steps, mpath, vpath = run.latest_checkpoint()
     old = run.read_metrics()
     rows = [r for r in old.get("evaluations", []) if r.get("timesteps", 0) <= steps]
@@ -393,7 +402,8 @@ def _build_model(opts: TrainOptions, run: RunFolder, start: _Start, venv: Any) -
     from .trained import load_ppo_model, load_vecnormalize
 
     ppo_params = opts.ppo_params()
-    tb = str(run.tb_dir) if opts.tensorboard and importlib.util.find_spec("tensorboard") is not None else None
+    use_tb = opts.tensorboard and importlib.util.find_spec("tensorboard") is not None
+    tb = str(run.confined(run.tb_dir, "tb")) if use_tb else None  # logs stay inside the run folder
     if start.model_path is None:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=True, clip_obs=10.0, gamma=ppo_params["gamma"])
         kw = {k: v for k, v in ppo_params.items() if k not in ("net_arch", "log_std_init")}
@@ -443,7 +453,9 @@ def _write_run_config(run: RunFolder, opts: TrainOptions, env_config: dict[str, 
         }
     )
     # the bare environment settings, usable as `gear-env evaluate --config RUN_DIR/env_config.json`
-    atomic_write_text(run.path / "env_config.json", json.dumps(env_config, indent=2) + "\n")
+    atomic_write_text(
+        run.confined(run.path / "env_config.json", "env_config.json"), json.dumps(env_config, indent=2) + "\n"
+    )
 
 
 def _learn(
@@ -504,6 +516,12 @@ def train(opts: TrainOptions) -> dict[str, Any]:
     torch.set_num_threads(1)
     run = RunFolder(opts.out)
     env_config = config_to_dict(make_config(opts.env_id, dict(opts.env_config)))
+    with run.lock():  # one writer per run folder: a second train --out/--resume on it is refused at once
+        return _train_locked(run, opts, env_config)
+
+
+def _train_locked(run: RunFolder, opts: TrainOptions, env_config: dict[str, Any]) -> dict[str, Any]:
+    """:func:`train` once the run folder is locked."""
     start = _start_point(run, opts, env_config)
     total = rollout_total(opts, start.steps)
     if total != opts.timesteps and opts.verbose:

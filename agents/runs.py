@@ -34,7 +34,19 @@ from typing import Any
 
 import numpy as np
 
+from gear_env.errors import FileFormatError
 from gear_env.io import atomic_write, atomic_write_bytes, atomic_write_text, read_json
+from gear_env.untrusted import (
+    ArraySpec,
+    check_keys,
+    inside,
+    read_npz,
+    refuse,
+    want_bool,
+    want_int,
+    want_num,
+    want_str,
+)
 
 RUN_FORMAT = "gear-env-run/1"
 CONFIG_FILE = "config.json"
@@ -49,10 +61,44 @@ METRICS_CSV = "metrics.csv"
 METRICS_JSON = "metrics.json"
 CHECKPOINT_DIR = "checkpoints"
 LATEST_FILE = "latest.json"
+RUN_MARKER = ".gear-env-run"
+"""Marker file a run folder carries from the moment ``train`` creates it (``--overwrite`` clears only run folders)."""
+CONFIG_KEYS = (
+    "format", "env_id", "env_config", "ppo", "train", "vecnormalize", "observation_space", "action_space",
+    "versions", "command",
+)  # fmt: skip
+"""The keys of config.json (any other key is refused)."""
+TRAIN_KEYS = ("timesteps", "num_envs", "seed", "eval_freq", "eval_episodes", "checkpoint_freq")
+MAX_OBS_DIM = 4096
+"""Most observation features of a stored run (statistics and spaces are bounded by it before allocating)."""
+MAX_CHECKPOINT_STEPS = 10**12
+"""Most steps a checkpoint index may name (the bound of ``train --timesteps``)."""
 
 
-class RunFolderError(ValueError):
+class RunFolderError(FileFormatError):
     """A run folder is missing, incomplete, corrupt or incompatible (message says which and why)."""
+
+
+def is_run_folder(path: str | os.PathLike) -> bool:
+    """True if ``path`` is a folder this package wrote a training run into (what ``--overwrite`` may clear).
+
+    The rule: the folder carries the :data:`RUN_MARKER` file (written by every ``train`` since the
+    marker was introduced), or, for folders of earlier releases, its config.json is a JSON object of
+    format ``gear-env-run/1`` and it holds metrics.csv, metrics.json, model.zip or
+    checkpoints/latest.json (the layout every earlier release wrote)."""
+    p = Path(path)
+    if not p.is_dir():
+        return False
+    if (p / RUN_MARKER).is_file():
+        return True
+    try:
+        data = read_json(p / CONFIG_FILE, CONFIG_FILE, max_bytes=1024 * 1024)
+    except (OSError, ValueError):
+        return False
+    if not isinstance(data, dict) or data.get("format") != RUN_FORMAT:
+        return False
+    layout = (METRICS_CSV, METRICS_JSON, MODEL_FILE, f"{CHECKPOINT_DIR}/{LATEST_FILE}")
+    return any((p / q).is_file() for q in layout)
 
 
 def versions() -> dict[str, str]:
@@ -90,19 +136,61 @@ def space_from_dict(d: Mapping[str, Any]) -> Any:
     try:
         if d.get("type") == "Box":
             shape = tuple(int(n) for n in d["shape"])
-            if len(shape) > 8 or int(np.prod(shape)) > 1_000_000:
+            if len(shape) > 8 or any(n < 0 for n in shape) or int(np.prod(shape)) > MAX_OBS_DIM:
                 raise ValueError(f"implausible shape {shape}")
             dtype = np.dtype(str(d.get("dtype", "float32")))
             if dtype.kind != "f":
                 raise ValueError(f"dtype {dtype} is not a float type")
+            if not isinstance(d["low"], list) or not isinstance(d["high"], list):
+                raise ValueError("low and high must be lists of numbers")
             low = np.asarray(d["low"], np.float64).reshape(shape)
             high = np.asarray(d["high"], np.float64).reshape(shape)
             return spaces.Box(low=low.astype(dtype), high=high.astype(dtype), shape=shape, dtype=dtype)
         if d.get("type") == "Discrete":
-            return spaces.Discrete(int(d["n"]))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise RunFolderError(f"corrupt space description {dict(d)!r}: {exc}") from exc
+            return spaces.Discrete(want_int(d["n"], 1, 2**31, "space", "n"))
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise RunFolderError(f"corrupt space description: {type(exc).__name__}: {str(exc)[:200]}") from None
     raise RunFolderError(f"unsupported space type {d.get('type')!r} in a run folder (Box or Discrete)")
+
+
+def _check_config(data: Mapping[str, Any], path: str) -> None:
+    """Types and ranges of a config.json (known keys only); RunFolderError naming the field."""
+    from .ppo import PPO_DEFAULTS, validate_ppo
+
+    try:
+        check_keys(data, CONFIG_KEYS, path, "")
+        want_str(data["env_id"], path, "env_id", max_len=64)
+        check_keys(data["env_config"], data["env_config"].keys() if isinstance(data["env_config"], dict) else (),
+                   path, "env_config")  # fmt: skip
+        for k in ("observation_space", "action_space"):
+            check_keys(data[k], ("type", "shape", "dtype", "low", "high", "n"), path, k)
+        if "vecnormalize" in data:
+            want_bool(data["vecnormalize"], path, "vecnormalize")
+        train = check_keys(data.get("train", {}), TRAIN_KEYS, path, "train")
+        num_envs = want_int(train.get("num_envs", 16), 1, 1024, path, "train.num_envs")
+        for k in ("timesteps", "eval_freq", "checkpoint_freq"):
+            if k in train:
+                want_int(train[k], 0, MAX_CHECKPOINT_STEPS, path, f"train.{k}")
+        if "seed" in train:
+            want_int(train["seed"], 0, 2**32 - 1, path, "train.seed")
+        if "eval_episodes" in train:
+            want_int(train["eval_episodes"], 1, 100_000, path, "train.eval_episodes")
+        ppo = check_keys(data.get("ppo", {}), PPO_DEFAULTS, path, "ppo")
+        try:
+            validate_ppo({**PPO_DEFAULTS, **ppo}, num_envs)
+        except FileFormatError:
+            raise
+        except ValueError as exc:
+            raise refuse(path, "ppo", str(exc)) from None
+        for k in ("versions",):
+            if k in data:
+                check_keys(data[k], data[k].keys() if isinstance(data[k], dict) else (), path, k)
+        if "command" in data:
+            want_str(data["command"], path, "command", max_len=100_000)
+    except RunFolderError:
+        raise
+    except ValueError as exc:
+        raise RunFolderError(str(exc)) from None
 
 
 def check_space_compatible(saved: Mapping[str, Any], space: Any, what: str, run_dir: str | os.PathLike) -> None:
@@ -154,15 +242,35 @@ class RunFolder:
         return self.path / "tb"
 
     def create(self) -> None:
-        """Create the folder and its checkpoints/ subfolder (parents too)."""
-        self.checkpoint_dir.mkdir(parents=True, exist_ok=True)
+        """Create the folder, its run marker and its checkpoints/ subfolder (parents too)."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        self.mark()
+        self.confined(self.checkpoint_dir, CHECKPOINT_DIR).mkdir(exist_ok=True)
+
+    def lock(self) -> Any:
+        """Create the folder if missing and lock it for this process (:class:`gear_env.io.OutputLock`).
+
+        A second process that locks the same folder, by any path (symbolic link included), gets a
+        ValueError at once."""
+        from gear_env.io import OutputLock
+
+        if self.path.exists() and not self.path.is_dir():
+            raise RunFolderError(f"run folder {str(self.path)!r} exists and is not a folder")
+        self.path.mkdir(parents=True, exist_ok=True)
+        return OutputLock(self.path, "run folder")
+
+    def mark(self) -> None:
+        """Write the run marker (:data:`RUN_MARKER`) if it is missing."""
+        m = self._file(RUN_MARKER)
+        if not m.is_file():
+            atomic_write_text(m, f"{RUN_FORMAT}\n")
 
     # ---- config ------------------------------------------------------------------------------
     def write_config(self, data: Mapping[str, Any]) -> None:
         """Write config.json atomically (adds the format tag)."""
         payload = {"format": RUN_FORMAT, **data}
         atomic_write_text(
-            self.config_path, json.dumps(payload, indent=2, sort_keys=False, default=_json_default) + "\n"
+            self._file(CONFIG_FILE), json.dumps(payload, indent=2, sort_keys=False, default=_json_default) + "\n"
         )
 
     def read_config(self) -> dict[str, Any]:
@@ -188,7 +296,20 @@ class RunFolder:
         for key in ("env_id", "env_config", "observation_space", "action_space"):
             if key not in data:
                 raise RunFolderError(f"corrupt run folder {str(self.path)!r}: {CONFIG_FILE} lacks {key!r}")
+        _check_config(data, str(self.config_path))
         return data
+
+    def confined(self, path: Path, what: str) -> Path:
+        """``path`` if it stays inside the run folder once symbolic links are resolved (RunFolderError if not)."""
+        try:
+            inside(self.path, path, what)
+        except ValueError as exc:
+            raise RunFolderError(str(exc)) from None
+        return path
+
+    def _file(self, name: str) -> Path:
+        """A file of the run folder, refused if it (or checkpoints/) resolves outside the folder."""
+        return self.confined(self.path / name, name)
 
     # ---- checkpoints -------------------------------------------------------------------------
     def checkpoint_paths(self, steps: int) -> tuple[Path, Path]:
@@ -203,6 +324,8 @@ class RunFolder:
             model.save(buf)
             Path(tmp).write_bytes(buf.getvalue())
 
+        self.confined(model_path, model_path.name)
+        self.confined(vecnorm_path, vecnorm_path.name)
         atomic_write(model_path, _w_model)
         if vecnorm is not None:
             save_vecnormalize(vecnorm, vecnorm_path)
@@ -212,11 +335,13 @@ class RunFolder:
 
         latest.json is replaced last, so it always names a complete checkpoint. Older checkpoints
         beyond the ``keep`` most recent are deleted. Returns the model path."""
-        self.checkpoint_dir.mkdir(parents=True, exist_ok=True)
+        self.confined(self.checkpoint_dir, CHECKPOINT_DIR).mkdir(parents=True, exist_ok=True)
         mpath, vpath = self.checkpoint_paths(steps)
+        self.confined(mpath, mpath.name)
+        self.confined(vpath, vpath.name)
         self.save_model(model, vecnorm, mpath, vpath)
         latest = {"steps": int(steps), "model": mpath.name, "vecnormalize": vpath.name if vecnorm is not None else None}
-        atomic_write_text(self.checkpoint_dir / LATEST_FILE, json.dumps(latest) + "\n")
+        atomic_write_text(self.confined(self.checkpoint_dir / LATEST_FILE, LATEST_FILE), json.dumps(latest) + "\n")
         self._prune(keep, int(steps))
         return mpath
 
@@ -257,6 +382,7 @@ class RunFolder:
         n = 0
         if not self.checkpoint_dir.is_dir():
             return 0
+        self.confined(self.checkpoint_dir, CHECKPOINT_DIR)
         for p in self.checkpoint_dir.iterdir():
             if p.name == LATEST_FILE or (p.name.startswith("ckpt_") and p.suffix in (".zip", ".npz", ".pkl")):
                 p.unlink()
@@ -272,19 +398,28 @@ class RunFolder:
             raise RunFolderError(
                 f"cannot resume: no checkpoint in {str(self.checkpoint_dir)!r} ({LATEST_FILE} missing)"
             )
+        self.confined(self.checkpoint_dir, CHECKPOINT_DIR)
+        lp = str(latest)
         try:
-            data = read_json(latest, "checkpoint index", max_bytes=64 * 1024)
-            steps = int(data["steps"])
-            mname = str(data["model"])
-            vname = str(data["vecnormalize"]) if data.get("vecnormalize") else None
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise RunFolderError(f"cannot resume: corrupt {str(latest)!r}: {exc}") from exc
+            data = check_keys(
+                read_json(latest, "checkpoint index", max_bytes=64 * 1024), ("steps", "model", "vecnormalize"), lp, "",
+                required=("steps", "model"),
+            )  # fmt: skip
+            steps = want_int(data["steps"], 0, MAX_CHECKPOINT_STEPS, lp, "steps")
+            mname = want_str(data["model"], lp, "model", max_len=4096)
+            vname = (
+                want_str(data["vecnormalize"], lp, "vecnormalize", max_len=4096) if data.get("vecnormalize") else None
+            )
+        except (OSError, ValueError) as exc:
+            raise RunFolderError(f"cannot resume: corrupt checkpoint index: {exc}") from None
         # latest.json names files of checkpoints/ only: a plain checkpoint name, never a path
         if not _CKPT_NAME.fullmatch(mname) or (vname is not None and not _CKPT_VN_NAME.fullmatch(vname)):
             raise RunFolderError(
                 f"cannot resume: {str(latest)!r} names {mname!r}/{vname!r}; only checkpoint files of "
                 f"{CHECKPOINT_DIR}/ (ckpt_<steps>.zip, ckpt_<steps>_vecnormalize.npz) are loaded"
             )
+        if int(mname[5:14]) != steps or (vname is not None and int(vname[5:14]) != steps):
+            raise RunFolderError(f"{lp!r}: steps: {steps} does not match the checkpoint it names ({mname!r})")
         mpath = self.checkpoint_dir / mname
         vpath = self.checkpoint_dir / vname if vname is not None else None
         for q in (mpath, vpath):
@@ -309,19 +444,34 @@ class RunFolder:
         w.writeheader()
         for r in rows:
             w.writerow({k: r.get(k, "") for k in keys})
-        atomic_write_text(self.path / METRICS_CSV, buf.getvalue())
+        atomic_write_text(self._file(METRICS_CSV), buf.getvalue())
         payload = {"evaluations": list(rows), "summary": dict(summary)}
-        atomic_write_text(self.path / METRICS_JSON, json.dumps(payload, indent=2, default=_json_default) + "\n")
+        atomic_write_text(self._file(METRICS_JSON), json.dumps(payload, indent=2, default=_json_default) + "\n")
 
     def read_metrics(self) -> dict[str, Any]:
         """metrics.json as a dict ({} if absent)."""
-        p = self.path / METRICS_JSON
+        p = self._file(METRICS_JSON)
         if not p.is_file():
             return {}
+        q = str(p)
         try:
-            return read_json(p, METRICS_JSON)
+            data = check_keys(read_json(p, METRICS_JSON), ("evaluations", "summary"), q, "")
+            evals = data.get("evaluations", [])
+            if not isinstance(evals, list):
+                raise refuse(q, "evaluations", "must be a list")
+            for i, row in enumerate(evals):
+                check_keys(row, row.keys() if isinstance(row, dict) else (), q, f"evaluations[{i}]")
+                want_int(row.get("timesteps", 0), 0, MAX_CHECKPOINT_STEPS, q, f"evaluations[{i}].timesteps")
+                want_num(row.get("return_mean", 0.0), -1e300, 1e300, q, f"evaluations[{i}].return_mean")
+            summ = check_keys(data.get("summary", {}), (data.get("summary") or {}).keys(), q, "summary")
+            want_num(summ.get("wall_seconds", 0.0), 0.0, 1e12, q, "summary.wall_seconds")
+            want_int(summ.get("timesteps", 0), 0, MAX_CHECKPOINT_STEPS, q, "summary.timesteps")
+            want_int(summ.get("sessions", 1), 0, 10**9, q, "summary.sessions")
+        except RunFolderError:
+            raise
         except (OSError, ValueError) as exc:
-            raise RunFolderError(f"corrupt {str(p)!r}: {exc}") from exc
+            raise RunFolderError(f"corrupt metrics: {exc}") from None
+        return data
 
 
 def export_policy(run_dir: str | os.PathLike, dest: str | os.PathLike, use_best: bool = False) -> Path:
@@ -380,7 +530,6 @@ def read_vecnormalize_stats(path: str | os.PathLike) -> dict[str, Any]:
 
     Read with ``allow_pickle=False``; a pickled file of an older gear-env is refused with the way to
     convert it. :class:`RunFolderError` if missing, corrupt or inconsistent."""
-    import zipfile
 
     p = Path(path)
     if p.suffix == LEGACY_VECNORM_SUFFIX or (not p.exists() and p.with_suffix(LEGACY_VECNORM_SUFFIX).is_file()):
@@ -392,23 +541,27 @@ def read_vecnormalize_stats(path: str | os.PathLike) -> dict[str, Any]:
         )
     if not p.is_file():
         raise RunFolderError(f"normalisation statistics {str(p)!r} are missing")
+    vec = ArraySpec("f", 1, MAX_OBS_DIM)
+    scalar_f, scalar_b = ArraySpec("fi", 0, 1), ArraySpec("b", 0, 1)
+    spec = {"format": ArraySpec("U", 0, 1), "obs_mean": vec, "obs_var": vec, "ret_mean": ArraySpec("f", None, 1),
+            "ret_var": ArraySpec("f", None, 1)}  # fmt: skip
+    spec.update({k: scalar_f for k in ("obs_count", "ret_count", "clip_obs", "clip_reward", "gamma", "epsilon")})
+    spec.update(norm_obs=scalar_b, norm_reward=scalar_b)
     try:
-        with np.load(p, allow_pickle=False) as z:
-            d = {k: z[k] for k in z.files}
+        d = read_npz(p, "normalisation statistics", spec, max_total=1024 * 1024)
         if str(d["format"]) != VECNORM_FORMAT:
-            raise ValueError(f"format {str(d['format'])!r}, expected {VECNORM_FORMAT!r}")
-        out = {
-            "obs_mean": np.asarray(d["obs_mean"], np.float64),
-            "obs_var": np.asarray(d["obs_var"], np.float64),
-            "ret_mean": np.asarray(d["ret_mean"], np.float64),
-            "ret_var": np.asarray(d["ret_var"], np.float64),
-        }
+            raise refuse(p, "format", f"{str(d['format'])[:40]!r}, expected {VECNORM_FORMAT!r}")
+        out = {k: np.asarray(d[k], np.float64) for k in ("obs_mean", "obs_var", "ret_mean", "ret_var")}
         for k in ("obs_count", "ret_count", "clip_obs", "clip_reward", "gamma", "epsilon"):
             out[k] = float(d[k])
+            if not np.isfinite(out[k]) or out[k] < 0:
+                raise refuse(p, k, f"must be a finite number >= 0, got {out[k]!r}")
         for k in ("norm_obs", "norm_reward"):
             out[k] = bool(d[k])
-    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile) as exc:
-        raise RunFolderError(f"corrupt normalisation statistics {str(p)!r}: {type(exc).__name__}: {exc}") from exc
+        if not out["epsilon"] > 0 or not out["clip_obs"] > 0 or out["gamma"] > 1:
+            raise refuse(p, "epsilon/clip_obs/gamma", "need epsilon > 0, clip_obs > 0, gamma <= 1")
+    except ValueError as exc:
+        raise RunFolderError(f"corrupt normalisation statistics {exc}") from None
     if out["obs_mean"].shape != out["obs_var"].shape or out["obs_mean"].ndim != 1:
         raise RunFolderError(f"corrupt normalisation statistics {str(p)!r}: mean and variance shapes differ")
     finite = [out["obs_mean"], out["obs_var"], out["ret_mean"], out["ret_var"]]

@@ -14,16 +14,101 @@ with the common ``predict(observation, state, episode_start, deterministic)``.
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from gear_env.errors import FileFormatError
+
 from .policy import BasePolicy
 
 FORMAT = "gear-env-policy/1"
 ACTIVATIONS = ("Tanh", "ReLU")
+POLICY_KEYS = (
+    "format", "env_id", "env_config", "observation_space", "action_space", "net_arch", "activation",
+    "log_std_init", "obs_normalization", "summary",
+)  # fmt: skip
+"""The keys of policy.json (any other key is refused)."""
+MAX_POLICY_JSON_BYTES = 4 * 1024 * 1024
+"""Largest policy.json read (bytes)."""
+MAX_STATE_DICT_BYTES = 64 * 1024 * 1024
+"""Largest policy.pt read (bytes, on disk and declared inside)."""
+MAX_POLICY_PARAMETERS = 4_000_000
+"""Most weights of a shipped network (actor + critic), checked before it is built."""
+MAX_OBS_DIM = 4096
+"""Most observation features of a shipped policy."""
+
+
+def read_policy_json(path: str | Path) -> dict[str, Any]:
+    """policy.json with every field checked (known keys, types, ranges, sizes consistent with the spaces).
+
+    The env id must be a Gymnasium id; the network (``net_arch``: a list, or a dict of ``pi``
+    and ``vf`` lists) at most :data:`MAX_POLICY_PARAMETERS` weights for the spaces given, checked before
+    anything is built. FileFormatError naming the file and the field otherwise."""
+    from gear_env.io import parse_json_text
+    from gear_env.untrusted import (
+        check_keys,
+        layer_sizes,
+        mlp_parameters,
+        read_regular,
+        refuse,
+        want_num,
+        want_numbers,
+        want_str,
+    )
+
+    p = str(path)
+    try:
+        raw = read_regular(p, "policy description", MAX_POLICY_JSON_BYTES)
+        meta = parse_json_text(raw.decode("utf-8-sig"), f"policy description {p!r}")
+    except UnicodeDecodeError as exc:
+        raise refuse(p, None, f"not UTF-8 text ({exc})") from None
+    except FileFormatError:
+        raise
+    except ValueError as exc:
+        raise FileFormatError(str(exc), p) from None
+    check_keys(meta, POLICY_KEYS, p, "", required=POLICY_KEYS[:7])
+    want_str(meta["format"], p, "format", choices=(FORMAT,))
+    want_str(meta["env_id"], p, "env_id", max_len=128, pattern=r"[A-Za-z0-9_.:/-]+")
+    check_keys(meta["env_config"], meta["env_config"].keys() if isinstance(meta["env_config"], dict) else (), p,
+               "env_config")  # fmt: skip
+    dims = {}
+    for k in ("observation_space", "action_space"):
+        sp = check_keys(meta[k], ("low", "high"), p, k, required=("low", "high"))
+        lo = want_numbers(sp["low"], p, f"{k}.low", max_len=MAX_OBS_DIM)
+        hi = want_numbers(sp["high"], p, f"{k}.high", length=len(lo))
+        if len(lo) == 0 or np.any(lo > hi):
+            raise refuse(p, k, "needs low <= high and at least one entry")
+        dims[k] = len(lo)
+    if dims["action_space"] != 1:
+        raise refuse(p, "action_space", f"must have 1 entry (the speed action), has {dims['action_space']}")
+    arch = meta["net_arch"]
+    if isinstance(arch, dict):
+        check_keys(arch, ("pi", "vf"), p, "net_arch", required=("pi", "vf"))
+        pi, vf = layer_sizes(arch["pi"], p, "net_arch.pi"), layer_sizes(arch["vf"], p, "net_arch.vf")
+    else:
+        pi = vf = layer_sizes(arch, p, "net_arch")
+    n = mlp_parameters(dims["observation_space"], pi, 1) + mlp_parameters(dims["observation_space"], vf, 1)
+    if n > MAX_POLICY_PARAMETERS:
+        raise refuse(p, "net_arch", f"a network of {n:,} weights; the limit is {MAX_POLICY_PARAMETERS:,}")
+    want_str(meta["activation"], p, "activation", choices=ACTIVATIONS)
+    if "log_std_init" in meta:
+        want_num(meta["log_std_init"], -20.0, 5.0, p, "log_std_init")
+    norm = meta.get("obs_normalization")
+    if norm is not None:
+        check_keys(norm, ("mean", "var", "epsilon", "clip_obs"), p, "obs_normalization",
+                   required=("mean", "var", "epsilon", "clip_obs"))  # fmt: skip
+        d = dims["observation_space"]
+        want_numbers(norm["mean"], p, "obs_normalization.mean", length=d)
+        want_numbers(norm["var"], p, "obs_normalization.var", length=d, lo=0.0)
+        want_num(norm["epsilon"], 0.0, 1.0, p, "obs_normalization.epsilon", lo_open=True)
+        want_num(norm["clip_obs"], 0.0, 1e6, p, "obs_normalization.clip_obs", lo_open=True)
+    if "summary" in meta and not isinstance(meta["summary"], dict):
+        raise refuse(p, "summary", "must be a JSON object")
+    return meta
 
 
 def _space(space: Any) -> dict[str, Any]:
@@ -90,12 +175,7 @@ class ShippedPolicy(BasePolicy):
 
         self.folder = Path(folder)
         self.name = name
-        try:
-            meta = json.loads((self.folder / "policy.json").read_text(encoding="utf-8"))
-        except (OSError, ValueError) as exc:
-            raise ValueError(f"{str(self.folder / 'policy.json')!r} is missing or not JSON: {exc}") from None
-        if not isinstance(meta, dict) or meta.get("format") != FORMAT:
-            raise ValueError(f"{str(self.folder / 'policy.json')!r} is not a {FORMAT} policy description")
+        meta = read_policy_json(self.folder / "policy.json")
         self.meta = meta
         self.env_id = meta["env_id"]
         ob, ac = meta["observation_space"], meta["action_space"]
@@ -110,12 +190,24 @@ class ShippedPolicy(BasePolicy):
             activation_fn=act,
             log_std_init=meta.get("log_std_init", 0.0),
         )
+        pt = self.folder / "policy.pt"
         try:
-            state = torch.load(self.folder / "policy.pt", map_location="cpu", weights_only=True)
+            from gear_env.untrusted import open_zip, read_regular
+
+            raw = read_regular(pt, "state dict", MAX_STATE_DICT_BYTES)
+            open_zip(raw, "state dict", max_member=MAX_STATE_DICT_BYTES, max_total=MAX_STATE_DICT_BYTES,
+                     stored_only=True, path=str(pt)).close()  # fmt: skip
+            state = torch.load(io.BytesIO(raw), map_location="cpu", weights_only=True)
+            expected = {k: tuple(v.shape) for k, v in self.policy.state_dict().items()}
+            if not isinstance(state, dict) or set(state) != set(expected):
+                raise ValueError("its tensors are not those of this network")
+            for k, v in state.items():
+                if not isinstance(v, torch.Tensor) or tuple(v.shape) != expected[k] or not torch.isfinite(v).all():
+                    raise ValueError(f"tensor {k!r} is not a finite tensor of shape {expected[k]}")
             self.policy.load_state_dict(state)
         except Exception as exc:  # a corrupt or foreign file: one clear message
-            raise ValueError(
-                f"{str(self.folder / 'policy.pt')!r} is not a valid state dict of this network: {exc}"
+            raise FileFormatError(
+                f"{str(pt)!r} is not a valid state dict of this network: {type(exc).__name__}: {exc}", str(pt)
             ) from None
         self.policy.set_training_mode(False)
         n = meta.get("obs_normalization")
@@ -162,10 +254,7 @@ def export_run(run_dir: str | Path, env_id: str, out_dir: str | Path, use_best: 
 
     run = RunFolder(run_dir)
     cfg = run.read_config()
-    metrics = {}
-    mpath = Path(run_dir) / "metrics.json"
-    if mpath.is_file():
-        metrics = json.loads(mpath.read_text(encoding="utf-8"))
+    metrics = run.read_metrics()
     stem = "best_model" if use_best else "model"
     model = load_ppo_model(Path(run_dir) / f"{stem}.zip")
     vn = load_vecnormalize(Path(run_dir) / ("best_vecnormalize.npz" if use_best else "vecnormalize.npz"))

@@ -8,8 +8,6 @@ environment observation like every scripted baseline does.
 from __future__ import annotations
 
 import os
-import pickle
-import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -150,6 +148,23 @@ def load_vecnormalize(path: str | os.PathLike, venv: Any = None) -> Any:
 
 MAX_MODEL_DATA = 8 * 1024 * 1024
 """Largest ``data`` entry (the JSON of attributes) of a model zip that is read (bytes)."""
+MAX_MODEL_MEMBER = 64 * 1024 * 1024
+"""Largest declared uncompressed size of any other member of a model zip (bytes)."""
+MAX_MODEL_BYTES = 128 * 1024 * 1024
+"""Largest model zip (on disk, and its members' declared uncompressed total; bytes)."""
+MAX_ROLLOUT_STEPS = 2**21
+"""Most ``n_steps * n_envs`` of a loaded model (its rollout buffer is allocated on load)."""
+MAX_POLICY_PARAMETERS = 4_000_000
+"""Most weights of a loaded policy network (actor + critic), checked before it is built."""
+MODEL_MEMBERS = (
+    "data",
+    "pytorch_variables.pth",
+    "policy.pth",
+    "policy.optimizer.pth",
+    "_stable_baselines3_version",
+    "system_info.txt",
+)
+"""The members of an SB3 PPO zip; any other member is refused."""
 
 SAFE_ENTRIES = (
     "policy_class",
@@ -168,51 +183,181 @@ SAFE_ENTRIES = (
 Any other pickled entry is refused."""
 
 
-def _safe_custom_objects(path: Path, run_config: Mapping[str, Any]) -> dict[str, Any]:
+def _opt(check: Any) -> Any:
+    """A field check that also accepts null."""
+    return lambda v, p, f: None if v is None else check(v, p, f)
+
+
+def _serialized(v: Any, p: str, f: str) -> None:
+    from gear_env.untrusted import refuse
+
+    if not (isinstance(v, dict) and ":serialized:" in v) and v is not None:
+        raise refuse(p, f, "must be a serialised entry (it is replaced, never unpickled)")
+
+
+def _policy_kwargs(v: Any, p: str, f: str) -> None:
+    from gear_env.untrusted import check_keys, layer_sizes, want_num
+
+    check_keys(v, ("net_arch", "log_std_init", "optimizer_kwargs"), p, f)
+    arch = v.get("net_arch", [64, 64])
+    if isinstance(arch, dict):
+        check_keys(arch, ("pi", "vf"), p, f"{f}.net_arch", required=("pi", "vf"))
+        layer_sizes(arch["pi"], p, f"{f}.net_arch.pi")
+        layer_sizes(arch["vf"], p, f"{f}.net_arch.vf")
+    else:
+        layer_sizes(arch, p, f"{f}.net_arch")
+    if "log_std_init" in v:
+        want_num(v["log_std_init"], -20.0, 5.0, p, f"{f}.log_std_init")
+    if "optimizer_kwargs" in v:
+        ok = check_keys(v["optimizer_kwargs"], ("eps", "weight_decay"), p, f"{f}.optimizer_kwargs")
+        for k in ok:
+            want_num(ok[k], 0.0, 1.0, p, f"{f}.optimizer_kwargs.{k}")
+
+
+def _model_fields() -> dict[str, Any]:
+    """The known keys of a PPO zip's ``data`` and the check of each (anything else is refused)."""
+    from gear_env.untrusted import refuse, want_bool, want_int, want_num, want_str
+
+    big = 2**62
+
+    def num(lo: float, hi: float, lo_open: bool = False) -> Any:
+        return lambda v, p, f: want_num(v, lo, hi, p, f, lo_open)
+
+    def integer(lo: int, hi: int) -> Any:
+        return lambda v, p, f: want_int(v, lo, hi, p, f)
+
+    def empty_dict(v: Any, p: str, f: str) -> None:
+        if v != {}:
+            raise refuse(p, f, "must be an empty object")
+
+    def null(v: Any, p: str, f: str) -> None:
+        if v is not None:
+            raise refuse(p, f, "must be null")
+
+    fields: dict[str, Any] = {k: _serialized for k in SAFE_ENTRIES}
+    fields.update(
+        verbose=integer(0, 2), policy_kwargs=_policy_kwargs, num_timesteps=integer(0, big),
+        _total_timesteps=integer(0, big), _num_timesteps_at_start=integer(0, big),
+        seed=_opt(integer(0, 2**32 - 1)), action_noise=null, start_time=integer(0, big),
+        learning_rate=num(0.0, 1.0, True), tensorboard_log=_opt(lambda v, p, f: want_str(v, p, f, max_len=4096)),
+        _episode_num=integer(0, big), use_sde=lambda v, p, f: want_bool(v, p, f),
+        sde_sample_freq=integer(-1, 1_000_000), _current_progress_remaining=num(-10.0, 1.0),
+        _stats_window_size=integer(1, 100_000), _n_updates=integer(0, big), n_envs=integer(1, 1024),
+        n_steps=integer(1, MAX_ROLLOUT_STEPS), gamma=num(0.0, 1.0), gae_lambda=num(0.0, 1.0),
+        ent_coef=num(0.0, 100.0), vf_coef=num(0.0, 100.0), max_grad_norm=num(0.0, 1e6, True),
+        rollout_buffer_kwargs=empty_dict, batch_size=integer(1, MAX_ROLLOUT_STEPS), n_epochs=integer(1, 10_000),
+        clip_range_vf=_opt(num(0.0, 10.0, True)), normalize_advantage=lambda v, p, f: want_bool(v, p, f),
+        target_kl=_opt(num(0.0, 100.0, True)),
+    )  # fmt: skip
+    return fields
+
+
+def check_model_zip(path: str | os.PathLike) -> tuple[bytes, dict[str, Any]]:
+    """(the zip's bytes, its ``data`` attributes) after every check of an untrusted SB3 PPO zip.
+
+    The archive: at most :data:`MAX_MODEL_BYTES` on disk and declared in all, known members only
+    (:data:`MODEL_MEMBERS`), each member's declared size bounded before it is inflated; the torch
+    archives inside it stored (uncompressed) and bounded the same way. The ``data`` attributes:
+    known keys only, each type and range checked (an unknown ``policy_kwargs`` key is refused, not
+    passed on; ``n_steps * n_envs`` at most :data:`MAX_ROLLOUT_STEPS`, the network at most
+    :data:`MAX_POLICY_PARAMETERS` weights for the spaces it declares is checked by the loader).
+    :class:`RunFolderError` naming the file and the field otherwise."""
+    from gear_env.untrusted import open_zip, read_member, read_regular, refuse
+
+    p = os.fspath(path)
+    raw = read_regular(p, "model file", MAX_MODEL_BYTES)
+    try:
+        z = open_zip(
+            raw, "model file", allowed=MODEL_MEMBERS, required=("data", "policy.pth"),
+            max_member=MAX_MODEL_MEMBER, max_total=MAX_MODEL_BYTES, path=p,
+        )  # fmt: skip
+        with z:
+            if z.getinfo("data").file_size > MAX_MODEL_DATA:
+                raise refuse(p, "data", f"{z.getinfo('data').file_size:,} bytes; the limit is {MAX_MODEL_DATA:,}")
+            text = read_member(z, "data", p)
+            for member in ("policy.pth", "policy.optimizer.pth", "pytorch_variables.pth"):
+                if member in z.namelist():
+                    inner = read_member(z, member, p)
+                    open_zip(
+                        inner, "torch archive", max_member=MAX_MODEL_MEMBER, max_total=MAX_MODEL_MEMBER,
+                        stored_only=True, path=f"{p}:{member}",
+                    ).close()  # fmt: skip
+        data = parse_json_text(text.decode("utf-8"), f"model file {p!r}: data")
+    except UnicodeDecodeError as exc:
+        raise RunFolderError(f"corrupt model file {p!r}: data: not UTF-8 text ({exc})") from None
+    except ValueError as exc:
+        raise RunFolderError(f"corrupt model file {exc}") from None
+    if not isinstance(data, dict):
+        raise RunFolderError(f"corrupt model file {p!r}: data: not a JSON object")
+    fields = _model_fields()
+    unknown = sorted(k for k in data if k not in fields)
+    if unknown:
+        pickled = [k for k in unknown if isinstance(data[k], dict) and ":serialized:" in data[k]]
+        if pickled:
+            raise RunFolderError(
+                f"model file {p!r} holds pickled entries {pickled} that gear-env does not load "
+                f"(a pickle can run code); only models trained by gear-env are accepted"
+            )
+        raise RunFolderError(f"corrupt model file {p!r}: data.{unknown[0]}: unknown attribute of a PPO model; refused")
+    try:
+        for k, v in data.items():
+            fields[k](v, p, f"data.{k}")
+        for k in ("observation_space", "action_space", "policy_class"):
+            if k not in data:
+                raise refuse(p, f"data.{k}", "missing")
+    except ValueError as exc:
+        raise RunFolderError(f"corrupt model file {exc}") from None
+    pc = data.get("policy_class") or {}
+    if pc.get("__module__", "stable_baselines3.common.policies") != "stable_baselines3.common.policies":
+        raise RunFolderError(f"model file {p!r} was not trained with SB3's MlpPolicy (ActorCriticPolicy)")
+    n_steps, n_envs = data.get("n_steps", 1), data.get("n_envs", 1)
+    if n_steps * n_envs > MAX_ROLLOUT_STEPS:
+        raise RunFolderError(
+            f"corrupt model file {p!r}: data.n_steps: n_steps x n_envs = {n_steps} x {n_envs} exceeds "
+            f"{MAX_ROLLOUT_STEPS:,} (the rollout buffer is allocated on load)"
+        )
+    return raw, data
+
+
+def _check_network_size(path: str, data: Mapping[str, Any], obs_space: Any, act_space: Any) -> None:
+    """Refuse a network of more than :data:`MAX_POLICY_PARAMETERS` weights before it is built."""
+    from gear_env.untrusted import mlp_parameters
+
+    arch = (data.get("policy_kwargs") or {}).get("net_arch", [64, 64])
+    pi, vf = (arch["pi"], arch["vf"]) if isinstance(arch, dict) else (arch, arch)
+    n_in, n_out = int(np.prod(obs_space.shape)), int(np.prod(act_space.shape))
+    n = mlp_parameters(n_in, pi, n_out) + mlp_parameters(n_in, vf, 1)
+    if n > MAX_POLICY_PARAMETERS:
+        raise RunFolderError(
+            f"corrupt model file {path!r}: data.policy_kwargs.net_arch: a network of {n:,} weights; "
+            f"the limit is {MAX_POLICY_PARAMETERS:,}"
+        )
+
+
+def _safe_custom_objects(path: Path, run_config: Mapping[str, Any], data: Mapping[str, Any]) -> dict[str, Any]:
     """``custom_objects`` for ``PPO.load`` covering every cloudpickled entry of the zip's ``data``.
 
     The policy class, spaces, schedules and buffer class are rebuilt from ``run_config`` (the run
     folder's config.json); transient training state (last observation, episode buffers) becomes None
-    and is rebuilt by SB3. A zip with any other pickled entry raises :class:`RunFolderError`."""
+    and is rebuilt by SB3; the TensorBoard folder named in the file is dropped (it could point
+    anywhere). ``data`` was checked by :func:`check_model_zip`."""
     from stable_baselines3.common.buffers import RolloutBuffer
     from stable_baselines3.common.policies import ActorCriticPolicy
     from stable_baselines3.common.utils import FloatSchedule
 
-    try:
-        with zipfile.ZipFile(path) as z:
-            info = z.getinfo("data")
-            if info.file_size > MAX_MODEL_DATA:
-                raise RunFolderError(f"model file {str(path)!r}: its data entry is {info.file_size:,} bytes, too large")
-            text = z.read("data").decode("utf-8")
-    except (zipfile.BadZipFile, KeyError, OSError, UnicodeDecodeError, EOFError) as exc:
-        raise RunFolderError(f"corrupt model file {str(path)!r}: {type(exc).__name__}: {exc}") from exc
-    try:
-        data = parse_json_text(text, f"model file {str(path)!r}")
-    except ValueError as exc:
-        raise RunFolderError(str(exc)) from None
-    if not isinstance(data, dict):
-        raise RunFolderError(f"corrupt model file {str(path)!r}: its data entry is not a JSON object")
-    pickled = sorted(k for k, v in data.items() if isinstance(v, dict) and ":serialized:" in v)
-    unknown = [k for k in pickled if k not in SAFE_ENTRIES]
-    if unknown:
-        raise RunFolderError(
-            f"model file {str(path)!r} holds pickled entries {unknown} that gear-env does not load "
-            f"(a pickle can run code); only models trained by gear-env are accepted"
-        )
-    if data.get("policy_class", {}).get("__module__", "stable_baselines3.common.policies") != (
-        "stable_baselines3.common.policies"
-    ):
-        raise RunFolderError(f"model file {str(path)!r} was not trained with SB3's MlpPolicy (ActorCriticPolicy)")
     ppo = dict(run_config.get("ppo") or {})
     clip = ppo.get("clip_range", 0.2)
     lr = data.get("learning_rate", ppo.get("learning_rate", 3e-4))
     for name, v in (("clip_range", clip), ("learning_rate", lr)):
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
             raise RunFolderError(f"model file {str(path)!r}: {name} must be a number, got {v!r}")
+    obs_space = space_from_dict(run_config["observation_space"])
+    act_space = space_from_dict(run_config["action_space"])
+    _check_network_size(str(path), data, obs_space, act_space)
     return {
         "policy_class": ActorCriticPolicy,
-        "observation_space": space_from_dict(run_config["observation_space"]),
-        "action_space": space_from_dict(run_config["action_space"]),
+        "observation_space": obs_space,
+        "action_space": act_space,
         "lr_schedule": FloatSchedule(float(lr)),
         "clip_range": float(clip),
         "rollout_buffer_class": RolloutBuffer,
@@ -221,29 +366,37 @@ def _safe_custom_objects(path: Path, run_config: Mapping[str, Any]) -> dict[str,
         "_last_original_obs": None,
         "ep_info_buffer": None,
         "ep_success_buffer": None,
+        "tensorboard_log": None,
     }
 
 
 def load_ppo_model(path: str | os.PathLike, device: str = "cpu", run_config: Mapping[str, Any] | None = None) -> Any:
     """Load an SB3 PPO zip without unpickling anything from it.
 
-    Every cloudpickled entry of the zip is replaced (``custom_objects``) by an object rebuilt from
-    ``run_config`` (the run folder's config.json; read from the zip's folder, or its parent for a
-    checkpoint, when None); the network weights are read by SB3 with ``torch.load(weights_only=True)``.
-    :class:`RunFolderError` (a ValueError) if the file is missing, corrupt or holds other pickles."""
+    The zip is checked first (:func:`check_model_zip`: archive sizes, known members and attributes,
+    bounded network); every cloudpickled entry is replaced (``custom_objects``) by an object rebuilt
+    from ``run_config`` (the run folder's config.json; read from the zip's folder, or its parent for
+    a checkpoint, when None); the network weights are read by SB3 with ``torch.load(weights_only=True)``
+    from the bytes that were checked. :class:`RunFolderError` (a ValueError) if the file is missing,
+    corrupt, holds other pickles or an unknown or out-of-range field."""
+    import io
+
     from stable_baselines3 import PPO
 
     p = Path(path)
     if not p.is_file():
         raise RunFolderError(f"model file {str(p)!r} is missing")
+    if device not in ("cpu", "auto"):
+        raise ValueError(f"device must be 'cpu' or 'auto', got {device!r}")
     if run_config is None:
         folder = p.parent.parent if p.parent.name == "checkpoints" else p.parent
         run_config = RunFolder(folder).read_config()
-    custom = _safe_custom_objects(p, run_config)
+    raw, data = check_model_zip(p)
+    custom = _safe_custom_objects(p, run_config, data)
     try:
-        return PPO.load(str(p), device=device, custom_objects=custom)
-    except (zipfile.BadZipFile, EOFError, KeyError, ValueError, RuntimeError, pickle.UnpicklingError) as exc:
-        raise RunFolderError(f"corrupt model file {str(p)!r}: {type(exc).__name__}: {exc}") from exc
+        return PPO.load(io.BytesIO(raw), device="cpu", custom_objects=custom)
+    except Exception as exc:  # checked above; whatever SB3 or torch still objects to is a corrupt file
+        raise RunFolderError(f"corrupt model file {str(p)!r}: {type(exc).__name__}: {exc}") from None
 
 
 def load_trained_policy(
@@ -277,6 +430,8 @@ def load_trained_policy(
             f"({str(run.checkpoint_dir)}/ckpt_<steps>.zip) or continue it with "
             f"`gear-env train --out {run.path} --resume`"
         )
+    run.confined(mpath, model_file)
+    run.confined(vpath, vpath.name)
     model = load_ppo_model(mpath, run_config=cfg)
     vecnorm = load_vecnormalize(vpath) if cfg.get("vecnormalize", True) else None
     check_space_compatible(cfg["observation_space"], model.observation_space, "observation", run_dir)

@@ -17,6 +17,31 @@ from .env_config import GearSpeedConfig
 from .env_core import INFO_KEYS, REWARD_KEYS, SENSOR_NAMES, TERMS, GearSpeedCore, check_options, check_seed
 
 
+def _check_make_time_limit() -> None:
+    """Refuse ``gym.make(ID, max_episode_steps=...)`` with anything but a positive integer (or None).
+
+    Gymnasium applies the value only after the env is built (``-1`` silently drops the time limit,
+    so episodes would never be truncated; NaN raises its own TypeError); the value is read from the
+    ``make`` call that is building this env."""
+    import sys
+
+    from gymnasium.envs import registration
+
+    frame: Any = sys._getframe(1)
+    for _ in range(8):
+        if frame is None:
+            return
+        if frame.f_code is registration.make.__code__:
+            v = frame.f_locals.get("max_episode_steps")
+            if v is not None and (isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < 1):
+                raise ValueError(
+                    f"max_episode_steps must be a positive integer (the episode's time limit), got {v!r}; "
+                    "omit it for the task's own episode length"
+                )
+            return
+        frame = frame.f_back
+
+
 def check_action(action: Any, n: int | None = None) -> np.ndarray:
     """Validate actions in [-1, 1] and return them as float64 (shape (n,) or (1,)).
 
@@ -31,6 +56,9 @@ def check_action(action: Any, n: int | None = None) -> np.ndarray:
     try:
         if np.iscomplexobj(action):  # a cast would silently drop the imaginary part
             raise TypeError
+        raw = action if isinstance(action, np.ndarray) else np.asarray(action)
+        if raw.dtype.kind in "SUV" or (raw.dtype.kind == "O" and any(isinstance(x, (str, bytes)) for x in raw.flat)):
+            raise TypeError  # text is refused, also when it spells a number ("0.1")
         a = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(f"action must be a float array of shape (1,) in [-1, 1], got {action!r}") from None
@@ -151,6 +179,7 @@ class GearSpeedEnv(gym.Env):
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
 
     def __init__(self, config: GearSpeedConfig | dict | None = None, render_mode: str | None = None, **kwargs: Any):
+        _check_make_time_limit()
         super().__init__()
         self.config = GearSpeedConfig.from_kwargs(config, **kwargs)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:

@@ -7,7 +7,6 @@ naming the field and its allowed range.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -84,11 +83,9 @@ class TableConfig:
     @classmethod
     def from_json(cls: type[_C], path: str) -> _C:
         """Read a JSON object of settings (the ``--config`` file of the CLI)."""
-        with open(path, encoding="utf-8-sig") as fh:  # -sig: tolerate a byte-order mark
-            try:
-                data = json.load(fh)
-            except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-                raise ValueError(f"config file {path!r} is not valid JSON: {exc}") from None
+        from .io import read_json
+
+        data = read_json(path, "config file", max_bytes=1024 * 1024)  # size, depth, numbers bounded; BOM tolerated
         if not isinstance(data, dict):
             raise ValueError(f"config file {path!r} must hold a JSON object of settings")
         return cls.from_kwargs(data)

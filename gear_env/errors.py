@@ -18,3 +18,17 @@ class SimulationDivergedError(RuntimeError):
         self.omega = omega
         where = f" at omega={omega:.6g}" if omega is not None else ""
         super().__init__(f"simulation diverged in mesh period {self.period}{where}: {reason}")
+
+
+class FileFormatError(ValueError):
+    """A file the package was asked to read was refused: missing, too large, corrupt or holding a bad field.
+
+    The message is one line naming the file and, where there is one, the field. Attributes:
+        path: the file (as given).
+        field: the refused field or archive member, or None.
+    """
+
+    def __init__(self, message: str, path: str | None = None, field: str | None = None):
+        self.path = path
+        self.field = field
+        super().__init__(" ".join(str(message).split()))  # one line, whatever the problem text held

@@ -168,28 +168,18 @@ MAX_JSON_DEPTH = 64
 """Deepest nesting of arrays/objects accepted in a JSON input."""
 MAX_INT_DIGITS = 40
 """Longest integer literal accepted in a JSON input (digits)."""
+MAX_NUMBER_CHARS = 64
+"""Longest non-integer number literal accepted in a JSON input (characters)."""
 
 
 def read_limited(path: str | os.PathLike, what: str, max_bytes: int = MAX_JSON_BYTES) -> bytes:
-    """The bytes of a regular file of at most ``max_bytes`` (checked before reading); ``ValueError`` otherwise."""
-    p = os.fspath(path)
-    try:
-        with open(p, "rb") as fh:
-            st = os.fstat(fh.fileno())
-            if not stat.S_ISREG(st.st_mode):
-                raise ValueError(f"{what} {p!r} is not a regular file")
-            if st.st_size > max_bytes:
-                raise ValueError(f"{what} {p!r} is {st.st_size:,} bytes; the limit is {max_bytes:,} bytes")
-            data = fh.read(max_bytes + 1)
-    except FileNotFoundError:
-        raise ValueError(f"{what} {p!r} does not exist") from None
-    except IsADirectoryError:
-        raise ValueError(f"{what} {p!r} is a directory, expected a file") from None
-    except OSError as exc:
-        raise ValueError(f"{what} {p!r}: cannot read it ({exc.strerror or exc})") from None
-    if len(data) > max_bytes:
-        raise ValueError(f"{what} {p!r} is larger than the limit of {max_bytes:,} bytes")
-    return data
+    """The bytes of a regular file of at most ``max_bytes`` (checked before reading); ``ValueError`` otherwise.
+
+    A FIFO, directory, device or unreadable file (``/proc/self/mem``) is refused by name without
+    blocking (:func:`gear_env.untrusted.read_regular`)."""
+    from .untrusted import read_regular
+
+    return read_regular(path, what, max_bytes)
 
 
 def _json_depth(text: str) -> int:
@@ -216,7 +206,12 @@ def _json_depth(text: str) -> int:
 
 
 def parse_json_text(text: str, where: str, max_depth: int = MAX_JSON_DEPTH) -> Any:
-    """``json.loads`` with the nesting depth and integer length bounded; ``ValueError`` naming ``where``."""
+    """``json.loads`` with the size, nesting depth and number length bounded; ``ValueError`` naming ``where``.
+
+    The one JSON parser of the package for anything read from a file (configs, schedules, run
+    folders, policies, checkpoints' fingerprints, results files' attributes)."""
+    if len(text) > MAX_JSON_BYTES:
+        raise ValueError(f"{where}: {len(text):,} characters of JSON; the limit is {MAX_JSON_BYTES:,}")
     if _json_depth(text) > max_depth:
         raise ValueError(f"{where} is nested deeper than {max_depth} levels")
 
@@ -225,8 +220,13 @@ def parse_json_text(text: str, where: str, max_depth: int = MAX_JSON_DEPTH) -> A
             raise ValueError(f"{where}: an integer of {len(s)} digits (the limit is {MAX_INT_DIGITS})")
         return int(s)
 
+    def _float(s: str) -> float:
+        if len(s) > MAX_NUMBER_CHARS:
+            raise ValueError(f"{where}: a number of {len(s)} characters (the limit is {MAX_NUMBER_CHARS})")
+        return float(s)
+
     try:
-        return json.loads(text, parse_int=_int)
+        return json.loads(text, parse_int=_int, parse_float=_float)
     except json.JSONDecodeError as exc:
         raise ValueError(f"{where} is not valid JSON: {exc}") from None
     except RecursionError:  # pragma: no cover - the depth check comes first
@@ -247,25 +247,39 @@ def read_json(path: str | os.PathLike, what: str, max_bytes: int = MAX_JSON_BYTE
 # one writer at a time
 # --------------------------------------------------------------------------------------------------
 class OutputLock:
-    """An exclusive, non-blocking lock on an output path (``fcntl.flock`` on ``.<name>.lock`` beside it).
+    """An exclusive, non-blocking lock on an output file or folder, held for a command's life.
 
-    A second process that asks for the same output gets a ``ValueError`` at once. The lock dies
-    with its process (also on kill -9), so a crashed run never leaves a stale lock behind; the lock
-    file is removed on :meth:`release`.
+    Two locks are taken: ``fcntl.flock`` on ``.<name>.lock`` beside the *resolved* path (a symbolic
+    link and its target share it), and, when the output exists, on the output itself (a hard link,
+    or a folder reached by another path, shares its inode). A second process that asks for the same
+    output, by any name, gets a ``ValueError`` at once. The locks die with their process (also on
+    kill -9), so a crashed run never leaves a stale lock behind; the lock file is removed on
+    :meth:`release`.
     """
 
     def __init__(self, path: str | os.PathLike, what: str = "output"):
-        p = Path(os.path.abspath(os.fspath(path)))
+        p = Path(os.path.realpath(os.path.abspath(os.fspath(path))))
+        self.given = os.fspath(path)
         self.target = p
         self.path = p.with_name(f".{p.name}.lock")
         self.what = what
         self._fd: int | None = None
+        self._node_fd: int | None = None
+
+    def _busy(self, holder: str) -> ValueError:
+        return ValueError(
+            f"{self.what} {self.given!r} is being written by another process (pid {holder}); "
+            "wait for it to finish or choose another path"
+        )
 
     def acquire(self) -> OutputLock:
         import fcntl
 
         while True:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
+            except OSError as exc:
+                raise OSError(f"could not create the lock file {str(self.path)!r} of {self.given!r}: {exc}") from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:
@@ -273,10 +287,7 @@ class OutputLock:
                     holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
                 finally:
                     os.close(fd)
-                raise ValueError(
-                    f"{self.what} {str(self.target)!r} is being written by another process (pid {holder}); "
-                    "wait for it to finish or choose another path"
-                ) from None
+                raise self._busy(holder) from None
             # the file may have been removed by a releasing holder between open and flock: retry
             try:
                 same = os.path.samestat(os.fstat(fd), os.stat(self.path))
@@ -285,12 +296,45 @@ class OutputLock:
             if same:
                 break
             os.close(fd)
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        try:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        except OSError as exc:
+            os.close(fd)
+            raise OSError(f"could not write the lock file {str(self.path)!r} of {self.given!r}: {exc}") from None
         self._fd = fd
+        try:
+            self._lock_node()
+        except BaseException:
+            self.release()
+            raise
         return self
 
+    def _lock_node(self) -> None:
+        """Lock the existing output itself (its inode), so that a hard link to it is refused too."""
+        import fcntl
+
+        try:
+            st = os.stat(self.target)
+        except OSError:
+            return
+        if not (stat.S_ISREG(st.st_mode) or stat.S_ISDIR(st.st_mode)):
+            return
+        try:
+            nfd = os.open(self.target, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+        except OSError:  # unreadable: the beside lock alone guards it
+            return
+        try:
+            fcntl.flock(nfd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(nfd)
+            raise self._busy("?") from None
+        self._node_fd = nfd
+
     def release(self) -> None:
+        if self._node_fd is not None:
+            os.close(self._node_fd)
+            self._node_fd = None
         if self._fd is None:
             return
         try:
@@ -305,3 +349,39 @@ class OutputLock:
 
     def __exit__(self, *exc: Any) -> None:
         self.release()
+
+
+def hold_outputs(
+    outputs: Mapping[str, Any], inputs: Mapping[str, Any] | None = None, folders: Mapping[str, Any] | None = None
+) -> Any:
+    """The writing rule of every command: check, then lock, every output for the life of the ``with`` block.
+
+    ``outputs`` map an option name to an output file path (or None), ``folders`` to an output
+    folder (created if missing), ``inputs`` to input paths. Refused before any work (ValueError
+    naming the option): an output that is a device or directory, that is an input or another
+    output by any name (symbolic links and hard links: device and inode), or that another process
+    is writing (:class:`OutputLock`). Returns an ``ExitStack`` holding the locks."""
+    from contextlib import ExitStack
+
+    check_outputs(outputs, inputs)
+    seen: dict[tuple[Any, ...], str] = {}
+    for name, path in (folders or {}).items():
+        if path is None:
+            continue
+        p = os.fspath(path)
+        if os.path.exists(p) and not os.path.isdir(p):
+            raise ValueError(f"{name} {p!r} exists and is not a folder")
+        os.makedirs(p, exist_ok=True)
+        key = _identity(p)
+        if key in seen:
+            raise ValueError(f"{name} {p!r} is the same folder as {seen[key]}; choose another path")
+        seen[key] = f"{name} {p!r}"
+    stack = ExitStack()
+    try:
+        for name, path in {**(folders or {}), **outputs}.items():
+            if path is not None:
+                stack.enter_context(OutputLock(path, name))
+    except BaseException:
+        stack.close()
+        raise
+    return stack

@@ -122,15 +122,15 @@ class SpeedSchedule:
         cfg = GearSpeedConfig.from_kwargs(config)
         p = os.fspath(path)
         where = f"schedule file {p!r}"
-        if not os.path.isfile(p):
-            raise ValueError(f"{where} does not exist")
-        if os.path.getsize(p) > MAX_SCHEDULE_BYTES:  # checked before anything is read
-            raise ValueError(f"{where} is {os.path.getsize(p):,} bytes; the limit is {MAX_SCHEDULE_BYTES:,} bytes")
+        from .io import read_limited
+
+        # a FIFO, directory, device or /proc file is refused by name (never waited on); size from stat first
+        raw = read_limited(p, "schedule file", MAX_SCHEDULE_BYTES)
         try:
             if p.lower().endswith(".json"):
-                points, rows = cls._read_json(p, where)
+                points, rows = cls._read_json(raw, where)
             else:
-                points, rows = cls._read_csv(p, where)
+                points, rows = cls._read_csv(raw, where)
         except UnicodeDecodeError as exc:  # e.g. UTF-16 or a binary file
             raise ValueError(f"{where} is not UTF-8 text ({exc})") from None
         except csv.Error as exc:
@@ -143,25 +143,27 @@ class SpeedSchedule:
         return sched
 
     @staticmethod
-    def _read_csv(path: str, where: str) -> tuple[list[Any], list[str]]:
+    def _read_csv(raw: bytes, where: str) -> tuple[list[Any], list[str]]:
+        import io
+
         points: list[Any] = []
         rows: list[str] = []
-        with open(path, newline="", encoding="utf-8-sig") as fh:  # -sig: tolerate a byte-order mark (Excel)
-            for lineno, rec in enumerate(csv.reader(fh), start=1):
-                cells = [c.strip() for c in rec]
-                if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
-                    continue
-                if not points and not rows and _is_header(cells):
-                    continue
-                points.append(cells if len(cells) != 2 else (cells[0], cells[1]))
-                rows.append(f"row {lineno}")
+        text = raw.decode("utf-8-sig")  # -sig: tolerate a byte-order mark (Excel)
+        for lineno, rec in enumerate(csv.reader(io.StringIO(text, newline="")), start=1):
+            cells = [c.strip() for c in rec]
+            if not cells or all(c == "" for c in cells) or cells[0].startswith("#"):
+                continue
+            if not points and not rows and _is_header(cells):
+                continue
+            points.append(cells if len(cells) != 2 else (cells[0], cells[1]))
+            rows.append(f"row {lineno}")
         return points, rows
 
     @staticmethod
-    def _read_json(path: str, where: str) -> tuple[list[Any], list[str]]:
-        from .io import parse_json_text, read_limited
+    def _read_json(raw: bytes, where: str) -> tuple[list[Any], list[str]]:
+        from .io import parse_json_text
 
-        data = parse_json_text(read_limited(path, where, MAX_SCHEDULE_BYTES).decode("utf-8-sig"), where)
+        data = parse_json_text(raw.decode("utf-8-sig"), where)
         if isinstance(data, Mapping):
             if "points" in data:
                 data = data["points"]

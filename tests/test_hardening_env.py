@@ -146,6 +146,9 @@ def action_is_valid(action, n: int | None) -> bool:
     if np.iscomplexobj(action):
         return False
     try:
+        raw = np.asarray(action)
+        if raw.dtype.kind in "SUV" or (raw.dtype.kind == "O" and any(isinstance(x, (str, bytes)) for x in raw.flat)):
+            return False  # text is refused, also when it spells a number (issue 25)
         a = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError):
         return False

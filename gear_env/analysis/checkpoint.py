@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import time
-import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +20,27 @@ from ..io import atomic_write
 from .results import PointResult
 
 CHECKPOINT_VERSION = 1
+MAX_CHECKPOINT_BYTES = 1024**3
+"""Largest sweep checkpoint read (declared uncompressed bytes of all its arrays; 1 GiB)."""
+_PERIOD_LABEL = re.compile(r"period-([0-9]{1,6})")
+
+
+def _check_label(path: str, j: int, regime: str, period: int, max_period: int) -> None:
+    """A motion label of a results or checkpoint file: ``period-N`` with period N in [1, max_period],
+    or ``quasi-periodic`` / ``chaotic`` with period 0 (FileFormatError naming the point otherwise)."""
+    from ..untrusted import refuse
+
+    m = _PERIOD_LABEL.fullmatch(regime)
+    if m is not None:
+        if int(m.group(1)) != period or not 1 <= period <= max(1, max_period):
+            raise refuse(path, f"period[{j}]", f"{period} does not fit label {regime!r} (max period {max_period})")
+    elif regime in ("quasi-periodic", "chaotic"):
+        if period != 0:
+            raise refuse(path, f"period[{j}]", f"must be 0 for {regime!r}, got {period}")
+    else:
+        raise refuse(path, f"regime[{j}]", f"unknown motion label {regime[:40]!r}")
+
+
 MIN_INTERVAL = 2.0
 """Seconds between two non-forced saves (a serial sweep saves after a point at most this often)."""
 
@@ -44,33 +65,88 @@ class Checkpoint:
         return ck
 
     def _load(self) -> None:
+        """Read the file through the untrusted-file layer: members, dtypes and shapes checked before
+        allocating, the fingerprint parsed with bounded JSON, every point's label and period checked."""
+        from .. import kernels as K
+        from ..io import parse_json_text
+        from ..untrusted import ArraySpec, read_npz, refuse
+
         p = str(self.path)
-        try:
-            with np.load(self.path, allow_pickle=False) as z:
-                data = {k: z[k] for k in z.files}
-        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-            raise ValueError(f"checkpoint {p!r} is truncated or corrupt ({exc}); delete it to start afresh") from exc
-        try:
-            ver = int(data["version"])
-            fp = json.loads(str(data["fingerprint"]))
-            om = data["omegas"]
-        except (KeyError, ValueError) as exc:
-            raise ValueError(f"checkpoint {p!r} is not a gear-env sweep checkpoint ({exc})") from exc
+        n_max = max(1, len(self.omegas))
+        per = self.fingerprint.get("periods", 1) if isinstance(self.fingerprint.get("periods"), int) else 1
+        rows = n_max * max(per, 1)
+        n_grid = 1_000_000  # the most points of a sweep
+        spec = {
+            "version": ArraySpec("i", 0, 1),
+            "fingerprint": ArraySpec("U", 0, 1, 4 * 2**20),
+            "omegas": ArraySpec("f", 1, n_grid),
+            "has_lyapunov": ArraySpec("b", 0, 1),
+            "index": ArraySpec("i", 1, n_max),
+            "omega": ArraySpec("f", 1, n_max),
+            "regime": ArraySpec("U", 1, n_max, n_max * 4 * 64),
+            "period": ArraySpec("i", 1, n_max),
+            "lyapunov": ArraySpec("f", 1, n_max),
+            "poincare": ArraySpec("f", 3, rows * K.N_PC),
+            "stats": ArraySpec("f", 2, n_max * K.N_STATS),
+            "final_state": ArraySpec("f", 2, n_max * K.NSTATE),
+            "steps": ArraySpec("i", 1, n_max),
+            "n_clusters": ArraySpec("i", 1, n_max),
+            "converged": ArraySpec("b", 1, n_max),
+            "periods_recorded": ArraySpec("i", 1, n_max),
+        }
+
+        def read(only: tuple[str, ...] | None) -> dict[str, np.ndarray]:
+            try:
+                return read_npz(self.path, "checkpoint", spec, max_total=MAX_CHECKPOINT_BYTES, only=only)
+            except ValueError as exc:
+                raise ValueError(f"corrupt checkpoint: {exc}; delete it to start afresh") from None
+
+        data = read(("version", "fingerprint", "omegas"))  # first what identifies the sweep
+        ver = int(data["version"])
         if ver != CHECKPOINT_VERSION:
             raise ValueError(f"checkpoint {p!r} has version {ver}, expected {CHECKPOINT_VERSION}; delete it")
+        fp = parse_json_text(str(data["fingerprint"]), f"checkpoint {p!r}: fingerprint")
+        if not isinstance(fp, dict):
+            raise refuse(p, "fingerprint", "must be a JSON object")
         if fp != json.loads(json.dumps(self.fingerprint)):
             diff = sorted(k for k in set(fp) | set(self.fingerprint) if fp.get(k) != self.fingerprint.get(k))
             raise ValueError(
                 f"checkpoint {p!r} belongs to a different sweep (differs in {diff}); delete it or use another path"
             )
+        om = data["omegas"]
         if om.shape != self.omegas.shape or not np.array_equal(om, self.omegas):
             raise ValueError(f"checkpoint {p!r} belongs to a different omega grid; delete it or use another path")
+        data = read(None)
+        m = len(data["index"])
+        for k in ("omega", "regime", "period", "lyapunov", "steps", "n_clusters", "converged", "periods_recorded"):
+            if data[k].shape != (m,):
+                raise refuse(p, k, f"has shape {data[k].shape}, expected ({m},) like index")
+        if m and (
+            data["poincare"].shape[0] != m or data["poincare"].shape[2] != K.N_PC
+            or data["stats"].shape != (m, K.N_STATS) or data["final_state"].shape != (m, K.NSTATE)
+        ):  # fmt: skip
+            raise refuse(p, "poincare/stats/final_state", "shapes do not match the number of points")
+        idx = data["index"]
+        if m and (idx.min() < 0 or idx.max() >= len(self.omegas) or len(np.unique(idx)) != m):
+            raise refuse(p, "index", f"must hold distinct point indices in [0, {len(self.omegas) - 1}]")
+        if m and not np.array_equal(data["omega"], self.omegas[idx]):
+            raise refuse(p, "omega", "does not match the omega grid at the stored indices")
+        max_period = int(self.fingerprint.get("max_period", 64))
         has_lyap = bool(data["has_lyapunov"])
-        for j, i in enumerate(data["index"].tolist()):
+        for j, i in enumerate(idx.tolist()):
+            regime, period = str(data["regime"][j]), int(data["period"][j])
+            _check_label(p, j, regime, period, max_period)
+            for k in ("poincare", "stats", "final_state", "lyapunov", "omega"):
+                if not np.all(np.isfinite(data[k][j])):
+                    raise refuse(p, f"{k}[{j}]", "holds NaN or infinity")
+            if not 1 <= int(data["steps"][j]) <= 10_000_000 or not 0 <= int(data["n_clusters"][j]) <= 10**9:
+                raise refuse(p, f"steps/n_clusters[{j}]", "out of range")
+            if not 0 <= int(data["periods_recorded"][j]) <= 10**9:
+                raise refuse(p, f"periods_recorded[{j}]", "out of range")
             self.done[int(i)] = PointResult(
                 omega=float(data["omega"][j]),
-                regime=str(data["regime"][j]),
-                period=int(data["period"][j]),
+                regime=regime,
+                period=period,
                 lyapunov=float(data["lyapunov"][j]) if has_lyap else None,
                 poincare=data["poincare"][j],
                 stats=data["stats"][j],

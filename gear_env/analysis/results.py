@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from .. import kernels as K
+from ..errors import FileFormatError
 from ..params import GearParams
 from ..simulator import STATE_NAMES, stats_amplitude
 
@@ -34,7 +36,11 @@ DRIFT_WARN = 0.1
 docs/RESULTS.md, decaying transients near the torus edges by 0.05-0.4."""
 
 
-class ResultsFileError(ValueError):
+MAX_RESULTS_BYTES = 1024**3
+"""Largest results file read: its variables' declared sizes in all (1 GiB), checked before loading."""
+
+
+class ResultsFileError(FileFormatError):
     """A results file is missing data, truncated, corrupt or of an incompatible format version."""
 
 
@@ -283,29 +289,64 @@ class SweepResult:
         """
         import xarray as xr
 
+        from ..io import parse_json_text
+        from ..untrusted import open_regular, want_int, want_str
+        from .checkpoint import _check_label
+
         p = Path(path)
         if not p.exists():
             raise FileNotFoundError(f"results file {str(p)!r} does not exist")
         try:
+            os.close(open_regular(p, "results file")[0])  # a FIFO, device or folder is refused, never waited on
+        except ValueError as exc:
+            raise ResultsFileError(str(exc)) from None
+        try:
             with xr.open_dataset(p, engine=_engine()) as ds0:
+                # the declared sizes first: nothing is read into memory before they are bounded
+                total = sum(int(v.size) * v.dtype.itemsize for v in ds0.variables.values())
+                if total > MAX_RESULTS_BYTES:
+                    raise ResultsFileError(
+                        f"results file {str(p)!r} declares {total:,} bytes of data; the limit is {MAX_RESULTS_BYTES:,}"
+                    )
                 ds = ds0.load()
+        except ResultsFileError:
+            raise
         except Exception as exc:  # h5py/netCDF raise many types on a damaged file
             raise ResultsFileError(f"results file {str(p)!r} is truncated or not a NetCDF-4 file: {exc}") from exc
         if ds.attrs.get("format") != FORMAT_NAME:
             raise ResultsFileError(f"{str(p)!r} is not a gear-env sweep file (format={ds.attrs.get('format')!r})")
-        ver = int(ds.attrs.get("format_version", -1))
+        try:
+            ver = int(ds.attrs.get("format_version", -1))
+        except (TypeError, ValueError):
+            ver = -1
         if ver != FORMAT_VERSION:
             raise ResultsFileError(
                 f"{str(p)!r} has format_version {ver}; this gear-env reads version {FORMAT_VERSION} only"
             )
         try:
-            config = json.loads(ds.attrs["config"])
-            params = GearParams.from_dict(json.loads(ds.attrs["params"]))
+            config = parse_json_text(str(ds.attrs["config"]), f"results file {str(p)!r}: config")
+            params = GearParams.from_dict(parse_json_text(str(ds.attrs["params"]), f"results file {str(p)!r}: params"))
+            if not isinstance(config, dict):
+                raise ValueError("config is not a JSON object")
             arr = {str(k): ds[k].values for k in ds.data_vars}
             arr["omega"] = ds["omega"].values
             arr["regime"] = np.asarray([str(s) for s in arr["regime"]], dtype=object)
-        except (KeyError, ValueError, TypeError) as exc:
-            raise ResultsFileError(f"results file {str(p)!r} is incomplete: {exc}") from exc
+            n = len(arr["omega"])
+            for k, a in arr.items():
+                if a.shape[:1] != (n,):
+                    raise ValueError(f"{k} has shape {a.shape}, expected {n} points")
+            for j in range(n):
+                _check_label(str(p), j, str(arr["regime"][j]), int(arr["period"][j]), 1_000_000)
+            want_str(config["model"], str(p), "config.model", choices=("constant", "dynamic"))
+            want_str(config["direction"], str(p), "config.direction", choices=("forward", "reverse"))
+            want_int(config["transient"], 0, 10**9, str(p), "config.transient")
+            want_int(config["periods"], 1, 10**9, str(p), "config.periods")
+            if not isinstance(config.get("meta", {}), dict):
+                raise ValueError("config.meta is not a JSON object")
+        except ResultsFileError:
+            raise
+        except (KeyError, ValueError, TypeError, AttributeError, OverflowError) as exc:
+            raise ResultsFileError(f"results file {str(p)!r} is incomplete or corrupt: {exc}") from None
         if config.get("has_lyapunov") and "lyapunov" not in arr:
             raise ResultsFileError(f"results file {str(p)!r} is incomplete: lyapunov missing")
         if len(arr["omega"]) != config.get("n"):

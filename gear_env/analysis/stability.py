@@ -191,12 +191,13 @@ class StabilityMap:
     @classmethod
     def load(cls, path: str | os.PathLike) -> StabilityMap:
         """Read a map written by :meth:`save` (ValueError if it is corrupt or incompatible)."""
+        from ..io import read_json
+
+        d = read_json(path, "stability map file")  # size, depth and numbers bounded
         try:
-            with open(path, encoding="utf-8") as fh:
-                d = json.load(fh)
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"{str(path)!r} is not a valid stability map file: {exc}") from exc
-        return cls.from_dict(d)
+            return cls.from_dict(d)
+        except (KeyError, TypeError, AttributeError, IndexError) as exc:
+            raise ValueError(f"stability map file {str(path)!r} is incomplete: {type(exc).__name__}: {exc}") from None
 
 
 # ---------------------------------------------------------------------- computation

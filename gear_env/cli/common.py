@@ -84,6 +84,37 @@ def check_outputs(args: argparse.Namespace, outputs: tuple[str, ...], inputs: tu
     _check({flag(n): getattr(args, n, None) for n in outputs}, {flag(n): getattr(args, n, None) for n in inputs})
 
 
+def writes(
+    outputs: tuple[str, ...] = (), inputs: tuple[str, ...] = (), folders: tuple[str, ...] = ()
+) -> Callable[[Callable[[argparse.Namespace], int]], Callable[[argparse.Namespace], int]]:
+    """Decorator of a command's ``run(args)``: the writing rule of every command.
+
+    Before the command starts, its output files (``outputs``) and folders (``folders``, created if
+    missing) are checked (no device, directory, input or other output by any name: device and
+    inode) and locked for the command's life (:func:`gear_env.io.hold_outputs`); a second writer is
+    refused at once (exit 2). Names are attributes of ``args`` (``"json"`` -> ``--json``)."""
+    import functools
+
+    def flag(name: str) -> str:
+        return "--" + name.replace("_", "-")
+
+    def deco(run: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+        @functools.wraps(run)
+        def wrapped(args: argparse.Namespace) -> int:
+            from ..io import hold_outputs
+
+            with hold_outputs(
+                {flag(n): getattr(args, n, None) for n in outputs},
+                {flag(n): getattr(args, n, None) for n in inputs},
+                {flag(n): getattr(args, n, None) for n in folders},
+            ):
+                return run(args)
+
+        return wrapped
+
+    return deco
+
+
 # --------------------------------------------------------------------------------------------------
 # memory
 # --------------------------------------------------------------------------------------------------
@@ -135,6 +166,7 @@ __all__ = [
     "available_memory",
     "check_memory",
     "check_outputs",
+    "writes",
     "float_range",
     "int_range",
     "params_from_args",

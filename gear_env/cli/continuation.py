@@ -11,6 +11,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from .common import writes
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -87,6 +89,11 @@ def _check_args(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     _check_args(args)
+    return _run(args)
+
+
+@writes(outputs=("json", "plot"))
+def _run(args: argparse.Namespace) -> int:
     from ..analysis.continuation import continue_orbits
     from ..io import atomic_write_text
     from ..params import GearParams

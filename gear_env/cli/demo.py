@@ -8,6 +8,8 @@ import time
 
 import numpy as np
 
+from .common import writes
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -25,6 +27,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+@writes(folders=("out",))
 def run(args: argparse.Namespace) -> int:
     from ..analysis import classify_motion, largest_lyapunov
     from ..analysis.stability import default_stability_map

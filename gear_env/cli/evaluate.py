@@ -8,7 +8,7 @@ import sys
 import time
 
 from ..tasks import TASK_SETTINGS
-from .common import check_outputs, int_range
+from .common import int_range, writes
 
 TASK_IDS = tuple(TASK_SETTINGS)
 
@@ -58,13 +58,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+@writes(outputs=("json", "markdown", "plot"), inputs=("config", "schedule", "policy"))
 def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     if not args.schedule and not args.policy:
         raise ValueError("give at least one --schedule FILE|SPEC or --policy SPEC")
     if args.seed + args.episodes - 1 > 2**32 - 1:
         raise ValueError(f"--seed + --episodes - 1 must be <= {2**32 - 1} (episode k uses seed --seed + k)")
-    check_outputs(args, ("json", "markdown", "plot"), ("config", "schedule", "policy"))
     n = len(args.schedule) + len(args.policy)
     print(
         f"evaluating {n} polic{'y' if n == 1 else 'ies'} x {args.episodes} episode(s) on {args.env}, "

@@ -27,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from .common import writes
+
 MODELS = ("constant", "dynamic")
 EXTENSION_FRICTION = 0.05
 """Tooth friction coefficient of the psi-fluctuation extension figure (fig06b)."""
@@ -193,6 +195,7 @@ def _regime_runs(omega: Any, regime: Any) -> list[list[Any]]:
     return out
 
 
+@writes(folders=("out",))
 def run(args: argparse.Namespace) -> int:
     from ..params import GearParams
 

@@ -10,7 +10,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from .common import int_range
+from .common import int_range, writes
 
 DESCRIPTION = (
     "Judge policies against the targets of the RL result: return vs the oracle, chaos once settled, settled "
@@ -36,6 +36,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+@writes(folders=("out",), inputs=("config",))
 def run(args: argparse.Namespace) -> int:
     import torch
 

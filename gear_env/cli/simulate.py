@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .common import add_model_options, check_memory, check_outputs, float_range, int_range, params_from_args
+from .common import add_model_options, check_memory, float_range, int_range, params_from_args, writes
 
 MAX_PERIODS = 10_000_000
 """Upper bound of ``--periods`` and ``--transient`` (the memory estimate usually binds first)."""
@@ -30,13 +30,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+@writes(outputs=("json", "plot"))
 def run(args: argparse.Namespace) -> int:
     from ..analysis import classify_motion
     from ..simulator import default_steps_per_period, simulate
     from .common import simulate_bytes
 
     params = params_from_args(args)
-    check_outputs(args, ("json", "plot"))
     nsp = args.steps_per_period or default_steps_per_period(args.omega)
     check_memory(
         simulate_bytes(args.periods, args.transient, nsp),

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .common import add_model_options, check_outputs, float_range, int_range, params_from_args
+from .common import add_model_options, float_range, int_range, params_from_args, writes
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -33,11 +33,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+@writes(outputs=("json", "plot"))
 def run(args: argparse.Namespace) -> int:
     from ..analysis.stability import DEFAULT_POINTS, stability_map
 
     params = params_from_args(args)
-    check_outputs(args, ("json", "plot"))
     m = stability_map(
         args.model,
         params,

@@ -24,10 +24,17 @@ def build_parser(prog: str = "python -m gear_env.evaluation") -> argparse.Argume
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    args = build_parser().parse_args(argv)
+    from ..io import hold_outputs
+
+    with hold_outputs({"--json": args.json, "--plot": args.plot}):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     from ..env_config import GearSpeedConfig
     from ..steady_map import steady_reward_map
 
-    args = build_parser().parse_args(argv)
     cfg = GearSpeedConfig()
     w = np.round(np.arange(cfg.omega_min, cfg.omega_max + 1e-9, args.step), 6)
     maps = {}
