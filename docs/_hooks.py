@@ -69,6 +69,7 @@ def on_page_markdown(markdown, page, config, files):
 
 def _rewrite_changelog(text: str) -> str:
     """The changelog's links are relative to the repository root; those into docs/ were made relative above."""
+
     def sub(m: re.Match) -> str:
         label, target = m.group(1), m.group(2)
         if re.match(r"^[a-z][a-z0-9+.-]*:", target) or target.startswith("#"):
