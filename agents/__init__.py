@@ -2,7 +2,8 @@
 (:mod:`agents.baselines`), the oracle (:mod:`agents.oracle`), trained-policy loading
 (:mod:`agents.trained`), run folders (:mod:`agents.runs`), the comparison report
 (:mod:`agents.report`) and the policy registry (:func:`agents.registry.resolve_policy`) through
-which ``gear-env evaluate --policy SPEC`` loads them all.
+which ``gear-env evaluate --policy SPEC`` loads them all. Scoring your own model against the oracle
+is one call: :func:`agents.compare` (:mod:`agents.scoring`).
 
 Every policy has the stable-baselines3 interface
 ``predict(observation, state=None, episode_start=None, deterministic=True) -> (actions, state)``,
@@ -15,7 +16,14 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["resolve_policy"]
+__all__ = ["compare", "resolve_policy"]
+
+
+def compare(model: Any, env_id: str = "GearSpeed-v1", episodes: int = 20, seed: int = 9001, **kwargs: Any) -> Any:
+    """``model`` against the oracle and fixed-best on the same episodes; see :func:`agents.scoring.compare`."""
+    from .scoring import compare as _compare
+
+    return _compare(model, env_id=env_id, episodes=episodes, seed=seed, **kwargs)
 
 
 def resolve_policy(spec: str, config: Any = None) -> Any:

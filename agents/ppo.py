@@ -463,6 +463,12 @@ def _learn(
 ) -> int:
     """Run PPO up to ``state["total"]`` steps; on Ctrl-C/SIGTERM write a checkpoint and re-raise."""
     progress = opts.progress_bar and all(importlib.util.find_spec(m) is not None for m in ("tqdm", "rich"))
+    if model.tensorboard_log is None:
+        # without TensorBoard SB3 would make an empty SB3-<date> folder in the system temp directory on
+        # every learn(); a logger with no outputs, rooted in the run folder, writes nothing anywhere
+        from stable_baselines3.common.logger import configure
+
+        model.set_logger(configure(str(run.path), []))
     restore = _interrupt_on_sigterm()
     try:
         model.learn(

@@ -138,6 +138,11 @@ def resolve_policy(spec: str, config: Any = None, env_id: str | None = None) -> 
         return HillClimber(config)
     if s == "random" or s.startswith("random:"):
         return RandomPolicy(_seed(s.split(":", 1)[1], s) if ":" in s else 0)
+    from gear_env._extras import require
+
+    if s == "pretrained" or os.path.isdir(s) or os.sep in s or s.endswith(".zip"):
+        for module in ("torch", "stable_baselines3"):
+            require(module, f"policy {s!r} (a trained network)")
     from .trained import load_trained_policy
 
     if s == "pretrained" and env_id not in (None, "GearSpeed-v0"):

@@ -14,7 +14,8 @@ from .simulator import (
     simulate_batch,
 )
 
-__version__ = "0.1.0"
+__version__ = "0.4.0"
+"""The package version: the newest release of CHANGELOG.md; pyproject.toml reads it from here."""
 
 __all__ = [
     "DEFAULT_STEPS_PER_PERIOD",

@@ -15,13 +15,18 @@ import numpy as np
 from .env import GearSpeedEnv
 from .env_config import GearSpeedConfig
 from .report import EpisodeResult, EvaluationReport
+from .schedules import SpeedSchedule
 
 
 def run_episode(
     env: Any, policy: Any, seed: int | None, on_step: Callable[[dict[str, Any]], None] | None = None
 ) -> EpisodeResult:
     """Roll out one episode of ``policy`` (``predict(obs, state, episode_start, deterministic)``);
-    ``on_step``, if given, is called with each step's ``info`` (e.g. to sum reward terms)."""
+    ``on_step``, if given, is called with each step's ``info`` (e.g. to sum reward terms). A
+    :class:`~gear_env.schedules.SpeedSchedule` is bound to ``env``'s task first (one bound to a task whose
+    actions mean something else is refused with a ``ValueError``)."""
+    if isinstance(policy, SpeedSchedule):
+        policy = policy.bind(env.unwrapped.config)
     obs, info = env.reset(seed=seed)
     if hasattr(policy, "observe_episode"):  # a privileged baseline (the oracle): it is told the scenario
         policy.observe_episode(env.unwrapped.episode)
@@ -29,7 +34,7 @@ def run_episode(
     start = np.ones((1,), bool)
     omegas: list[float] = []
     vib: list[float] = []
-    ret = 0.0
+    ret = cost = delivered = demanded = 0.0
     done = False
     while not done:
         action, state = policy.predict(obs[None, :], state=state, episode_start=start, deterministic=True)
@@ -38,6 +43,11 @@ def run_episode(
         ret += r
         omegas.append(info["omega"])
         vib.append(info["force_peak"])
+        cost += float(info.get("cost", 0.0))
+        d = float(info.get("demand", 0.0) or 0.0)
+        if d > 0:
+            delivered += min(float(info["omega_mean"]), d)
+            demanded += d
         if on_step is not None:
             on_step(info)
         done = term or trunc
@@ -53,6 +63,8 @@ def run_episode(
         diverged=bool(info["diverged"]),
         omega=omegas,
         vibration=vib,
+        cost=cost,
+        demand_delivered=delivered / demanded if demanded > 0 else float("nan"),
     )
 
 
@@ -61,6 +73,7 @@ def evaluate_policies(
     config: GearSpeedConfig | Mapping[str, Any] | None = None,
     episodes: int = 5,
     seed: int = 0,
+    reference: str | None = None,
 ) -> EvaluationReport:
     """Evaluate policies on the same episode seeds.
 
@@ -70,6 +83,8 @@ def evaluate_policies(
         config: environment settings.
         episodes: episodes per policy (>= 1); episode k uses seed ``seed + k`` for every policy.
         seed: base seed.
+        reference: name of the policy the report's "% of" column divides by (e.g. ``"oracle"``); by
+            default ``"oracle"`` if a policy has that name, else none.
 
     Returns:
         :class:`EvaluationReport`.
@@ -87,7 +102,9 @@ def evaluate_policies(
         if not hasattr(pol, "predict"):
             raise ValueError(f"policy {name!r} has no predict(obs, state, episode_start, deterministic) method")
         out[name] = [run_episode(env, pol, int(seed) + k) for k in range(episodes)]
-    return EvaluationReport(out, cfg, int(seed))
+    if reference is None and "oracle" in out:
+        reference = "oracle"
+    return EvaluationReport(out, cfg, int(seed), reference)
 
 
 __all__ = ["evaluate_policies", "run_episode"]

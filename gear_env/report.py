@@ -29,6 +29,10 @@ class EpisodeResult:
         settled_omega: mean omega over the last quarter of the episode.
         steps: steps taken; diverged: True if the episode ended by divergence.
         omega: omega after each step (for plots); vibration: peak mesh force / F_s per step.
+        cost: sum over the episode of ``info["cost"]`` (the safe-RL constraint signal: non-periodic
+            motion, contact loss, impacts).
+        demand_delivered: with a demand profile, the fraction of the demand delivered,
+            sum of min(mean omega, demand) / sum of demand over the steps; NaN without one.
     """
 
     ret: float
@@ -41,6 +45,8 @@ class EpisodeResult:
     diverged: bool
     omega: list[float] = field(default_factory=list)
     vibration: list[float] = field(default_factory=list)
+    cost: float = 0.0
+    demand_delivered: float = math.nan
 
 
 def _ci95(x: Sequence[float]) -> tuple[float, float]:
@@ -54,7 +60,16 @@ def _ci95(x: Sequence[float]) -> tuple[float, float]:
     return float(a.mean()), half
 
 
-METRICS = ("ret", "throughput", "chaotic_fraction", "contact_loss", "impacts", "settled_omega")
+METRICS = (
+    "ret",
+    "throughput",
+    "chaotic_fraction",
+    "contact_loss",
+    "impacts",
+    "settled_omega",
+    "cost",
+    "demand_delivered",
+)
 
 
 @dataclass
@@ -64,6 +79,22 @@ class EvaluationReport:
     episodes: dict[str, list[EpisodeResult]]
     config: GearSpeedConfig
     seed: int
+    reference: str | None = None
+    """Name of the policy the "% of" column divides by (e.g. ``"oracle"``); None: no such column."""
+
+    def __post_init__(self) -> None:
+        if self.reference is not None and self.reference not in self.episodes:
+            raise ValueError(f"reference {self.reference!r} is not one of the policies {list(self.episodes)}")
+
+    def percent_of_reference(self, name: str) -> float:
+        """Mean return of ``name`` as a percentage of the reference policy's (same seeds); NaN without one.
+
+        A reference that plans on steady maps (the oracle) is not an upper bound: a policy can exceed
+        100 % where holding one speed is best (docs/ENVIRONMENT.md, "Baselines")."""
+        if self.reference is None:
+            return math.nan
+        ref = float(np.mean([e.ret for e in self.episodes[self.reference]]))
+        return 100.0 * float(np.mean([e.ret for e in self.episodes[name]])) / abs(ref) if ref != 0 else math.nan
 
     def summary(self, name: str) -> dict[str, tuple[float, float]]:
         """Mean and 95 % CI half-width of each metric of policy ``name``."""
@@ -71,26 +102,55 @@ class EvaluationReport:
         return {m: _ci95([getattr(e, m) for e in eps]) for m in METRICS}
 
     def to_markdown(self) -> str:
-        """The comparison table (mean +- 95 % CI over episodes)."""
-        head = (
-            "| policy | return | throughput (mean omega) | chaotic fraction | contact loss | impacts | settled omega |"
-        )
-        lines = [head, "|---|---:|---:|---:|---:|---:|---:|"]
+        """The comparison table (mean +- 95 % CI over episodes): return, "% of" the reference policy (if
+        set), cost, demand delivered (with a demand profile), throughput, chaos, contact loss, impacts and
+        settled omega."""
+        demand = self.config.demand is not None
+        cols = [("ret", "return", "{:.2f}"), ("cost", "cost", "{:.2f}")]
+        if demand:
+            cols.append(("demand_delivered", "demand delivered", "{:.3f}"))
+        cols += [
+            ("throughput", "throughput (mean omega)", "{:.3f}"),
+            ("chaotic_fraction", "chaotic fraction", "{:.3f}"),
+            ("contact_loss", "contact loss", "{:.3f}"),
+            ("impacts", "impacts", "{:.0f}"),
+            ("settled_omega", "settled omega", "{:.3f}"),
+        ]
+        heads = [c[1] for c in cols]
+        if self.reference is not None:
+            heads.insert(1, f"% of {self.reference}")
+        lines = ["| policy | " + " | ".join(heads) + " |", "|---|" + "---:|" * len(heads)]
         for name in self.episodes:
             s = self.summary(name)
             cells = []
-            for m, fmt in zip(METRICS, ("{:.2f}", "{:.3f}", "{:.3f}", "{:.3f}", "{:.0f}", "{:.3f}")):
+            for m, _, fmt in cols:
                 mean, half = s[m]
                 cells.append(fmt.format(mean) + (" ± " + fmt.format(half) if half > 0 else ""))
+            if self.reference is not None:
+                cells.insert(1, f"{self.percent_of_reference(name):.1f} %")
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
         n = len(next(iter(self.episodes.values()), []))
         lines.append("")
-        lines.append(f"{n} episode(s) per policy, seed {self.seed}; ± = 95 % confidence interval (t).")
+        note = f"{n} episode(s) per policy, seed {self.seed}; ± = 95 % confidence interval (t)."
+        note += ' cost = sum of info["cost"] over the episode.'
+        if demand:
+            note += " demand delivered = sum of min(omega, demand) / sum of demand."
+        if self.reference is not None:
+            note += f" % of {self.reference}: mean return over {self.reference}'s on the same seeds"
+            if self.reference == "oracle":
+                note += " (the oracle plans on steady maps; a fixed speed can score slightly above it)"
+            note += "."
+        lines.append(note)
         return "\n".join(lines)
 
     def to_json_dict(self) -> dict[str, Any]:
         """JSON-ready dict: per policy the means, CIs and per-episode values."""
-        out: dict[str, Any] = {"seed": self.seed, "config": self.config.to_dict(), "policies": {}}
+        out: dict[str, Any] = {
+            "seed": self.seed,
+            "config": self.config.to_dict(),
+            "reference": self.reference,
+            "policies": {},
+        }
         for name, eps in self.episodes.items():
             s = self.summary(name)
             out["policies"][name] = {
@@ -106,6 +166,10 @@ class EvaluationReport:
                 "impacts_mean": s["impacts"][0],
                 "impacts_ci95": s["impacts"][1],
                 "settled_omega_mean": s["settled_omega"][0],
+                "cost_mean": s["cost"][0],
+                "cost_ci95": s["cost"][1],
+                "demand_delivered_mean": s["demand_delivered"][0] if self.config.demand is not None else None,
+                "percent_of_reference": self.percent_of_reference(name) if self.reference is not None else None,
                 "settled_omega": [e.settled_omega for e in eps],
                 "returns": [e.ret for e in eps],
                 "diverged": sum(e.diverged for e in eps),

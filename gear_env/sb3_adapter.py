@@ -11,11 +11,13 @@ from typing import Any
 
 import numpy as np
 from gymnasium.vector import AutoresetMode
-from stable_baselines3.common.vec_env import VecEnv
 
+from ._extras import require
 from .env_config import GearSpeedConfig
 from .env_core import INFO_KEYS
 from .vector_env import GearSpeedVectorEnv
+
+VecEnv = require("stable_baselines3.common.vec_env", "gear_env.sb3_adapter (the SB3 VecEnv adapter)").VecEnv
 
 
 class SB3VecEnvAdapter(VecEnv):

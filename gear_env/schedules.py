@@ -1,4 +1,4 @@
-"""Speed schedules for ``GearSpeed-v0``: hand-written omega(t) profiles used as policies.
+"""Speed schedules for the GearSpeed tasks: hand-written omega(t) profiles used as policies.
 
 A :class:`SpeedSchedule` is a piecewise-linear omega(t) with t in environment steps (held constant
 after the last point, and before the first). It behaves like a stable-baselines3 model:
@@ -10,6 +10,15 @@ The action drives omega towards the schedule's value at the end of the coming st
 action mode from the omega decoded from the observation (entry 0), in ``target`` mode directly.
 The environment's rate limit (``max_domega`` per step) still applies, so a steep schedule is
 followed as fast as the motor allows.
+
+**Which task.** The action a schedule produces depends on the task (a change of omega on
+``GearSpeed-v0``, a filtered speed reference on ``GearSpeed-v1``), so a schedule is bound to one:
+``config=`` takes a task id (``"GearSpeed-v1"``), an environment made by ``gym.make`` (its own
+settings), a :class:`~gear_env.env_config.GearSpeedConfig` or a dict of settings. A schedule built
+without ``config=`` is unbound: :func:`gear_env.evaluation.evaluate_policies` (and ``gear-env
+evaluate``) bind it to the task they run, and :meth:`SpeedSchedule.predict` refuses to act until it is
+bound (:meth:`SpeedSchedule.bind`). A bound schedule run on a task whose actions mean something else
+(another action mode, rate limit or reference filter) is refused too.
 
 Files (:meth:`SpeedSchedule.from_file`):
 
@@ -35,6 +44,27 @@ from .env_config import GearSpeedConfig
 
 MAX_SCHEDULE_BYTES = 16 * 1024 * 1024
 """Largest schedule file read (bytes); a larger one is refused before it is read."""
+
+ACTION_FIELDS = ("action_mode", "max_domega", "reference_filter", "omega_min", "omega_max")
+"""The settings that decide what an action means: a schedule bound to one task runs on another only if
+they agree."""
+
+
+def _as_config(config: Any) -> GearSpeedConfig | None:
+    """``config=`` of a schedule -> a GearSpeedConfig (None stays None: unbound).
+
+    Accepts a GearSpeedConfig, a dict of settings, a registered task id or an environment (anything with
+    ``unwrapped.config``, e.g. from ``gym.make``)."""
+    if config is None or isinstance(config, GearSpeedConfig):
+        return config
+    if isinstance(config, str):
+        from .env_config import task_config
+
+        return task_config(config)
+    inner = getattr(getattr(config, "unwrapped", None), "config", None)
+    if isinstance(inner, GearSpeedConfig):
+        return inner
+    return GearSpeedConfig.from_kwargs(config)
 
 
 def _validate_points(
@@ -80,19 +110,55 @@ class SpeedSchedule:
 
     Args:
         points: (time, omega) pairs, times non-decreasing and >= 0, omegas in the env range.
-        config: the env settings the actions are meant for (omega range, max_domega, action mode);
-            default ``GearSpeedConfig()``.
+        config: the task the actions are meant for (omega range, max_domega, action mode, reference
+            filter): a task id, an env from ``gym.make``, a ``GearSpeedConfig`` or a dict of settings.
+            None (the default): unbound until :meth:`bind` (evaluate_policies binds it to its task).
         name: label for tables and plots.
 
     Use the constructors :meth:`constant`, :meth:`ramp`, :meth:`piecewise`, :meth:`from_file`
     and :meth:`from_spec`.
     """
 
-    def __init__(self, points: Any, config: GearSpeedConfig | Mapping[str, Any] | None = None, name: str | None = None):
-        self.config = GearSpeedConfig.from_kwargs(config)
+    def __init__(
+        self,
+        points: Any,
+        config: GearSpeedConfig | Mapping[str, Any] | str | Any | None = None,
+        name: str | None = None,
+    ):
+        cfg = _as_config(config)
+        self.bound = cfg is not None
+        self.config = cfg if cfg is not None else GearSpeedConfig()  # the omega range is the same for every task
         self.points = _validate_points(points, self.config, name or "schedule")
         self.name = name or "schedule"
         self._counters = np.zeros(0, np.int64)
+
+    def bind(self, config: Any) -> SpeedSchedule:
+        """This schedule for the task ``config`` (task id, env, GearSpeedConfig or dict).
+
+        Unbound: returns a bound copy (this object stays unbound, so it can be bound to other tasks).
+        Bound: returns ``self`` if ``config`` gives actions the same meaning (:data:`ACTION_FIELDS`), else
+        raises ``ValueError`` naming the settings that differ."""
+        cfg = _as_config(config)
+        if cfg is None:
+            raise ValueError("SpeedSchedule.bind: config must name a task (task id, env, GearSpeedConfig or dict)")
+        if not self.bound:
+            out = SpeedSchedule.__new__(SpeedSchedule)
+            out.bound, out.config, out.name = True, cfg, self.name
+            out.points = _validate_points(self.points.tolist(), cfg, self.name)
+            out._counters = np.zeros(0, np.int64)
+            return out
+        diff = [
+            f"{k} {getattr(self.config, k)!r} vs {getattr(cfg, k)!r}"
+            for k in ACTION_FIELDS
+            if getattr(self.config, k) != getattr(cfg, k)
+        ]
+        if diff:
+            raise ValueError(
+                f"schedule {self.name!r} was built for a task whose actions mean something else than on this one "
+                f"({'; '.join(diff)}): build it with config= the task it runs on (e.g. config=env or "
+                f"config='GearSpeed-v1'), or without config= to let the evaluation bind it"
+            )
+        return self
 
     # ------------------------------------------------------------------ constructors
     @classmethod
@@ -119,7 +185,8 @@ class SpeedSchedule:
     @classmethod
     def from_file(cls, path: str | os.PathLike, config: Any = None) -> SpeedSchedule:
         """Load a CSV (``.csv``/``.txt``) or JSON (``.json``) file of (time, omega) points."""
-        cfg = GearSpeedConfig.from_kwargs(config)
+        bound_cfg = _as_config(config)
+        cfg = bound_cfg if bound_cfg is not None else GearSpeedConfig()
         p = os.fspath(path)
         where = f"schedule file {p!r}"
         from .io import read_limited
@@ -136,6 +203,7 @@ class SpeedSchedule:
         except csv.Error as exc:
             raise ValueError(f"{where}: unreadable CSV ({exc})") from None
         sched = cls.__new__(cls)
+        sched.bound = bound_cfg is not None
         sched.config = cfg
         sched.points = _validate_points(points, cfg, where, rows)
         sched.name = os.path.splitext(os.path.basename(p))[0]
@@ -214,6 +282,12 @@ class SpeedSchedule:
 
     def action(self, obs: np.ndarray, t: np.ndarray | int) -> np.ndarray:
         """Actions (n, 1) for observations (n, n_obs) before step index ``t`` (per row)."""
+        if not self.bound:
+            raise ValueError(
+                f"schedule {self.name!r} is not bound to a task, so it does not know what its actions mean "
+                "(a change of omega on GearSpeed-v0, a speed reference on GearSpeed-v1): build it with config=env "
+                "or config='GearSpeed-v1', call .bind(env), or run it through gear_env.evaluation.evaluate_policies"
+            )
         cfg = self.config
         lo, hi = cfg.omega_min, cfg.omega_max
         obs = np.asarray(obs, float).reshape(-1, np.shape(obs)[-1])

@@ -1,4 +1,6 @@
-"""Every Python block of the README runs when saved as a script (``python block.py``), as a newcomer would."""
+"""Every Python block of the README and of the getting-started page runs when saved as a script
+(``python block.py``), as a newcomer would; the README stays a front page (short, no lab notebook) and its
+two commands are the ones CI runs."""
 
 from __future__ import annotations
 
@@ -12,7 +14,10 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
+GETTING_STARTED = ROOT / "docs" / "GETTING_STARTED.md"
+PAGES = (README, GETTING_STARTED)
 FENCE = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
+BASH = re.compile(r"^```bash\n(.*?)^```", re.S | re.M)
 
 
 def python_blocks(text: str) -> list[str]:
@@ -22,7 +27,28 @@ def python_blocks(text: str) -> list[str]:
 
 def test_readme_has_python_blocks():
     blocks = python_blocks(README.read_text(encoding="utf-8"))
-    assert len(blocks) >= 3, "the README's quick start lost its Python blocks"
+    assert len(blocks) >= 3, "the README's examples lost their Python blocks"
+    assert len(python_blocks(GETTING_STARTED.read_text(encoding="utf-8"))) >= 3
+
+
+def test_readme_is_a_front_page():
+    """<= 150 lines, and no dates, load averages or run logs (they belong in docs/BENCHMARKS.md)."""
+    text = README.read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 150
+    assert not re.findall(r"\b20\d\d-\d\d-\d\d\b", text), "a date in the README"
+    assert "load average" not in text and not re.search(r"\bload \d", text), "a load average in the README"
+
+
+def test_readme_commands_are_the_ones_ci_runs():
+    """The README's two commands: install + demo (the `dev` extra, which CI installs too) and the tests,
+    which .ci/run runs verbatim."""
+    cmds = [b.strip() for b in BASH.findall(README.read_text(encoding="utf-8"))]
+    assert len(cmds) == 2, cmds
+    install, tests = cmds
+    assert "pip install -e '.[dev]'" in install and install.endswith("gear-env demo")
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+    assert "pip install -q -e '.[dev]'" in ci
+    assert any(line.strip() == tests for line in ci.splitlines()), f"{tests!r} is not a line of .ci/run"
 
 
 def test_fence_parser_finds_exact_bodies():
@@ -30,17 +56,20 @@ def test_fence_parser_finds_exact_bodies():
     assert python_blocks(text) == ["a = 1\nb = 2\n", "c = 3\n"]
 
 
-@pytest.mark.parametrize("index", range(len(python_blocks(README.read_text(encoding="utf-8")))))
-def test_readme_block_runs_as_saved_script(index, tmp_path):
-    block = python_blocks(README.read_text(encoding="utf-8"))[index]
-    script = tmp_path / f"readme_block_{index}.py"
+BLOCKS = [(page, i) for page in PAGES for i in range(len(python_blocks(page.read_text(encoding="utf-8"))))]
+
+
+@pytest.mark.parametrize("page,index", BLOCKS, ids=[f"{p.stem}-{i}" for p, i in BLOCKS])
+def test_readme_block_runs_as_saved_script(page, index, tmp_path):
+    block = python_blocks(page.read_text(encoding="utf-8"))[index]
+    script = tmp_path / f"{page.stem}_block_{index}.py"
     script.write_text(block, encoding="utf-8")
     env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
     proc = subprocess.run(
         [sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
     )
     assert proc.returncode == 0, (
-        f"README Python block {index} failed as a script:\n{block}\n--- stderr ---\n{proc.stderr[-3000:]}"
+        f"{page.name} Python block {index} failed as a script:\n{block}\n--- stderr ---\n{proc.stderr[-3000:]}"
     )
 
 
@@ -74,7 +103,7 @@ def test_flag_reader_finds_flags_of_each_command():
 
 def test_every_command_and_flag_the_readme_names_exists():
     options = _subcommand_options()
-    text = README.read_text(encoding="utf-8")
+    text = "\n".join(p.read_text(encoding="utf-8") for p in PAGES)
     missing = [
         f"gear-env {c} {f}" for c, f in readme_flags(text) if c not in options or f not in options[c] | {"--help"}
     ]

@@ -57,7 +57,7 @@ def test_ramp_follows_the_schedule_within_the_rate_limit():
 
 
 def test_predict_is_batch_aware_and_resets_per_env():
-    s = SpeedSchedule.ramp(1.0, 2.0, 10)
+    s = SpeedSchedule.ramp(1.0, 2.0, 10, "GearSpeed-v0")
     obs = np.zeros((2, 10), np.float32)
     obs[:, 0] = 2 * (1.0 - 0.1) / 2.9 - 1  # omega = 1.0
     a, state = s.predict(obs, episode_start=np.array([True, True]))
@@ -158,3 +158,31 @@ def test_standalone_example_runs(tmp_path, capsys, monkeypatch):
     out = capsys.readouterr().out
     assert "episode: return" in out and "step  12" in out
     assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_unbound_schedule_refuses_to_act_and_evaluation_binds_it_to_its_task():
+    """Issue #26: a schedule built without config= and run on GearSpeed-v1 produced v0 (delta) actions
+    silently. Unbound it now refuses in a plain loop, and the evaluation binds it to the task it runs:
+    the same return as the schedule built for that task."""
+    import gymnasium as gym
+
+    from gear_env.env_config import task_config
+    from gear_env.evaluation import evaluate_policies
+
+    pts = [(0, 0.6), (5, 1.25)]
+    unbound = SpeedSchedule.piecewise(pts)
+    assert not unbound.bound
+    with pytest.raises(ValueError, match="not bound to a task"):
+        unbound.predict(np.zeros(10, np.float32))
+    cfg = task_config("GearSpeed-v1", {"max_steps": 8})
+    rep = evaluate_policies({"unbound": unbound, "bound": SpeedSchedule.piecewise(pts, cfg)}, cfg, episodes=1, seed=3)
+    assert rep.episodes["unbound"][0].ret == rep.episodes["bound"][0].ret
+    assert rep.episodes["unbound"][0].omega == rep.episodes["bound"][0].omega
+    assert not unbound.bound  # binding made a copy: the same schedule can run on another task
+    # config=env takes the env's own settings; a schedule bound to v0 is refused on v1
+    env = gym.make("GearSpeed-v1")
+    assert SpeedSchedule.piecewise(pts, env).config == env.unwrapped.config
+    with pytest.raises(ValueError, match="action_mode"):
+        evaluate_policies({"v0": SpeedSchedule.piecewise(pts, "GearSpeed-v0")}, cfg, episodes=1)
+    with pytest.raises(ValueError, match="env id must be one of"):
+        SpeedSchedule.constant(1.2, "GearSpeed-v9")

@@ -201,3 +201,17 @@ def test_pretrained_policy_loads_and_runs():
     rep = evaluate_policies({"pretrained": pol}, cfg, episodes=1, seed=0)
     ep = rep.episodes["pretrained"][0]
     assert ep.steps == 12 and np.isfinite(ep.ret)
+
+
+def test_training_without_tensorboard_writes_nothing_to_the_system_temp_dir(tmp_path, monkeypatch):
+    """Issue #26: every learn() without TensorBoard left an empty SB3-<date> folder in the system temp
+    directory. Training now logs into the run folder with no outputs."""
+    import tempfile
+
+    systmp = tmp_path / "systmp"
+    systmp.mkdir()
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
+    monkeypatch.setattr(tempfile, "tempdir", str(systmp))
+    assert tempfile.gettempdir() == str(systmp)
+    train(_opts(tmp_path / "run", timesteps=128, eval_freq=0, checkpoint_freq=0))
+    assert not [p.name for p in systmp.iterdir() if p.name.startswith("SB3-")]

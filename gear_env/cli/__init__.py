@@ -61,6 +61,13 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, OSError) as exc:
         print(f"gear-env {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except ImportError as exc:  # an optional dependency (gear_env._extras.require names the extra)
+        from .._extras import EXTRA_OF
+
+        top = (exc.name or "").split(".")[0]
+        hint = f" (pip install 'gear-env[{EXTRA_OF[top]}]')" if top in EXTRA_OF and "gear-env[" not in str(exc) else ""
+        print(f"gear-env {args.command}: error: {exc}{hint}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover
