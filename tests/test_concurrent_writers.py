@@ -55,7 +55,7 @@ def _run_ok(p: Path) -> None:
 FAST_TRAIN = ["--set", "steps_per_period=32", "--set", "periods_per_step=8", "--set", "max_steps=16",
               "--set", "warmup_periods=16"]  # fmt: skip
 COMMANDS = {
-    "evaluate": (["evaluate", "--schedule", "constant:1.0", "--episodes", "40", "--json", "{out}"], "r.json", _json_ok),
+    "evaluate": (["evaluate", "--schedule", "constant:1.0", "--episodes", "30", "--json", "{out}"], "r.json", _json_ok),
     "simulate": (["simulate", "--omega", "1.0", "--transient", "150000", "--periods", "8", "--json", "{out}"],
                  "s.json", _json_ok),  # fmt: skip
     "sweep": (["sweep", "--points", "24", "--omega-min", "0.8", "--omega-max", "1.6", "--transient", "400",

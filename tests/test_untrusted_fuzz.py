@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 import crafted_cases as cc  # noqa: E402
 
 MEMORY_BOUND = cc.MEMORY_BOUND
-FAST, SLOW = 12, 150  # examples per file kind: default run, -m slow
+FAST, SLOW = 8, 150  # examples per file kind: default run, -m slow
 
 
 class Payload:
