@@ -155,8 +155,6 @@ def space_from_dict(d: Mapping[str, Any]) -> Any:
 
 def _check_config(data: Mapping[str, Any], path: str) -> None:
     """Types and ranges of a config.json (known keys only); RunFolderError naming the field."""
-    from .ppo import PPO_DEFAULTS, validate_ppo
-
     try:
         check_keys(data, CONFIG_KEYS, path, "")
         want_str(data["env_id"], path, "env_id", max_len=64)
@@ -167,7 +165,7 @@ def _check_config(data: Mapping[str, Any], path: str) -> None:
         if "vecnormalize" in data:
             want_bool(data["vecnormalize"], path, "vecnormalize")
         train = check_keys(data.get("train", {}), TRAIN_KEYS, path, "train")
-        num_envs = want_int(train.get("num_envs", 16), 1, 1024, path, "train.num_envs")
+        want_int(train.get("num_envs", 16), 1, 1024, path, "train.num_envs")
         for k in ("timesteps", "eval_freq", "checkpoint_freq"):
             if k in train:
                 want_int(train[k], 0, MAX_CHECKPOINT_STEPS, path, f"train.{k}")
@@ -175,13 +173,10 @@ def _check_config(data: Mapping[str, Any], path: str) -> None:
             want_int(train["seed"], 0, 2**32 - 1, path, "train.seed")
         if "eval_episodes" in train:
             want_int(train["eval_episodes"], 1, 100_000, path, "train.eval_episodes")
-        ppo = check_keys(data.get("ppo", {}), PPO_DEFAULTS, path, "ppo")
-        try:
-            validate_ppo({**PPO_DEFAULTS, **ppo}, num_envs)
-        except FileFormatError:
-            raise
-        except ValueError as exc:
-            raise refuse(path, "ppo", str(exc)) from None
+        # the hyper-parameters: an object here; their ranges are checked by agents.ppo.validate_ppo
+        # when a run is resumed with them (TrainOptions), and clip_range/learning_rate when a model loads
+        ppo = data.get("ppo", {})
+        check_keys(ppo, ppo.keys() if isinstance(ppo, dict) else (), path, "ppo")
         for k in ("versions",):
             if k in data:
                 check_keys(data[k], data[k].keys() if isinstance(data[k], dict) else (), path, k)

@@ -262,6 +262,10 @@ def _npy(z: zipfile.ZipFile, info: zipfile.ZipInfo, spec: ArraySpec, path: str, 
         raise refuse(path, field, f"corrupt array ({type(exc).__name__}: {exc})") from None
     if len(raw) != nbytes:
         raise refuse(path, field, "truncated array")
+    if dtype.kind == "U":  # UTF-32 code units: one beyond U+10FFFF would crash numpy's str()
+        units = np.frombuffer(raw, dtype=np.dtype("u4").newbyteorder(dtype.byteorder))
+        if units.size and int(units.max()) > 0x10FFFF:
+            raise refuse(path, field, "text holds an invalid code point")
     arr = np.frombuffer(raw, dtype=dtype)
     return arr.reshape(shape, order="F" if fortran else "C").copy()
 

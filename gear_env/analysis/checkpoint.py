@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import time
 from pathlib import Path
 from typing import Any
@@ -17,30 +16,11 @@ from typing import Any
 import numpy as np
 
 from ..io import atomic_write
-from .results import PointResult
+from .results import PointResult, check_label
 
 CHECKPOINT_VERSION = 1
 MAX_CHECKPOINT_BYTES = 1024**3
 """Largest sweep checkpoint read (declared uncompressed bytes of all its arrays; 1 GiB)."""
-_PERIOD_LABEL = re.compile(r"period-([0-9]{1,6})")
-
-
-def _check_label(path: str, j: int, regime: str, period: int, max_period: int) -> None:
-    """A motion label of a results or checkpoint file: ``period-N`` with period N in [1, max_period],
-    or ``quasi-periodic`` / ``chaotic`` with period 0 (FileFormatError naming the point otherwise)."""
-    from ..untrusted import refuse
-
-    m = _PERIOD_LABEL.fullmatch(regime)
-    if m is not None:
-        if int(m.group(1)) != period or not 1 <= period <= max(1, max_period):
-            raise refuse(path, f"period[{j}]", f"{period} does not fit label {regime!r} (max period {max_period})")
-    elif regime in ("quasi-periodic", "chaotic"):
-        if period != 0:
-            raise refuse(path, f"period[{j}]", f"must be 0 for {regime!r}, got {period}")
-    else:
-        raise refuse(path, f"regime[{j}]", f"unknown motion label {regime[:40]!r}")
-
-
 MIN_INTERVAL = 2.0
 """Seconds between two non-forced saves (a serial sweep saves after a point at most this often)."""
 
@@ -135,7 +115,7 @@ class Checkpoint:
         has_lyap = bool(data["has_lyapunov"])
         for j, i in enumerate(idx.tolist()):
             regime, period = str(data["regime"][j]), int(data["period"][j])
-            _check_label(p, j, regime, period, max_period)
+            check_label(p, j, regime, period, max_period)
             for k in ("poincare", "stats", "final_state", "lyapunov", "omega"):
                 if not np.all(np.isfinite(data[k][j])):
                     raise refuse(p, f"{k}[{j}]", "holds NaN or infinity")

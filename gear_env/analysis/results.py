@@ -15,6 +15,7 @@ import hashlib
 import json
 import math
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,7 @@ from .. import kernels as K
 from ..errors import FileFormatError
 from ..params import GearParams
 from ..simulator import STATE_NAMES, stats_amplitude
+from ..untrusted import refuse
 
 FORMAT_NAME = "gear-env-sweep"
 FORMAT_VERSION = 1
@@ -34,6 +36,23 @@ LYAPUNOV_UNITS = "1 per unit natural time (omega_n t)"
 DRIFT_WARN = 0.1
 """Default :meth:`SweepResult.unsettled` threshold: settled tori drift by < 0.05 in the sweeps of
 docs/RESULTS.md, decaying transients near the torus edges by 0.05-0.4."""
+
+
+_PERIOD_LABEL = re.compile(r"period-([0-9]{1,6})")
+
+
+def check_label(path: str, j: int, regime: str, period: int, max_period: int) -> None:
+    """A motion label of a results or checkpoint file: ``period-N`` with period N in [1, max_period],
+    or ``quasi-periodic`` / ``chaotic`` with period 0 (FileFormatError naming the point otherwise)."""
+    m = _PERIOD_LABEL.fullmatch(regime)
+    if m is not None:
+        if int(m.group(1)) != period or not 1 <= period <= max(1, max_period):
+            raise refuse(path, f"period[{j}]", f"{period} does not fit label {regime!r} (max period {max_period})")
+    elif regime in ("quasi-periodic", "chaotic"):
+        if period != 0:
+            raise refuse(path, f"period[{j}]", f"must be 0 for {regime!r}, got {period}")
+    else:
+        raise refuse(path, f"regime[{j}]", f"unknown motion label {regime[:40]!r}")
 
 
 MAX_RESULTS_BYTES = 1024**3
@@ -291,7 +310,6 @@ class SweepResult:
 
         from ..io import parse_json_text
         from ..untrusted import open_regular, want_int, want_str
-        from .checkpoint import _check_label
 
         p = Path(path)
         if not p.exists():
@@ -336,7 +354,7 @@ class SweepResult:
                 if a.shape[:1] != (n,):
                     raise ValueError(f"{k} has shape {a.shape}, expected {n} points")
             for j in range(n):
-                _check_label(str(p), j, str(arr["regime"][j]), int(arr["period"][j]), 1_000_000)
+                check_label(str(p), j, str(arr["regime"][j]), int(arr["period"][j]), 1_000_000)
             want_str(config["model"], str(p), "config.model", choices=("constant", "dynamic"))
             want_str(config["direction"], str(p), "config.direction", choices=("forward", "reverse"))
             want_int(config["transient"], 0, 10**9, str(p), "config.transient")

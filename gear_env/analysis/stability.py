@@ -315,7 +315,9 @@ def default_stability_map(model: str = "dynamic") -> StabilityMap:
     Table 1 parameters, omega in [0.05, 3.0] with DEFAULT_POINTS points, default steps per period."""
     model_code(model)
     ref = resources.files("gear_env") / "data" / f"stability_{model}.json"
-    return StabilityMap.from_dict(json.loads(ref.read_text(encoding="utf-8")))
+    from ..io import parse_json_text
+
+    return StabilityMap.from_dict(parse_json_text(ref.read_text(encoding="utf-8"), f"packaged map {model!r}"))
 
 
 def stability_map(
