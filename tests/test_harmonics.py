@@ -206,3 +206,27 @@ def test_serialisation_round_trips_and_old_dicts_are_unchanged():
 def test_bad_harmonics_name_the_field(change, match):
     with pytest.raises(ValueError, match=match):
         GearParams(**change)
+
+
+def test_cli_takes_a_pair_and_params_files(tmp_path, capsys):
+    """`--pair` (SpurPair keywords) with `--params` overrides reaches simulate and continuation;
+    `--kappa` with a stiffness series and a bad pair exit 2 naming the problem."""
+    from gear_env.cli import main
+
+    pair = tmp_path / "pair.json"
+    pair.write_text(json.dumps({**_kw(PAPER_PAIR), "teeth": [55, 75], "bore": [0.04, 0.05]}))
+    over = tmp_path / "over.json"
+    over.write_text(json.dumps({"J_p": 0.041, "J_g": 0.079, "m_p": 1.53, "m_g": 3.01}))
+    out = tmp_path / "sim.json"
+    args = ["--pair", str(pair), "--params", str(over), "--harmonics", "8"]
+    assert main(["simulate", "--omega", "1.2", "--periods", "3", "--transient", "3", "--json", str(out), *args]) == 0
+    saved = json.loads(out.read_text())["params"]
+    assert len(saved["stiffness_harmonics"]) == 8 and saved["J_p"] == 0.041
+    assert saved["k_m0"] == pytest.approx(PAPER_PAIR.mean_mesh_stiffness, rel=1e-12)
+    capsys.readouterr()
+    assert main(["simulate", "--omega", "1.2", "--kappa", "0.1", *args]) == 2
+    assert "--kappa cannot be combined" in capsys.readouterr().err
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({**_kw(PAPER_PAIR), "teeth": [55, 75], "bore": [0.04, 0.5]}))
+    assert main(["continuation", "--pair", str(bad)]) == 2
+    assert "SpurPair.bore[1] (gear) must be in" in capsys.readouterr().err
