@@ -254,13 +254,12 @@ class GearSpeedCore:
         s = cfg.randomize_scale
         f = rng.uniform(1.0 - s, 1.0 + s, size=6)
         return p.replace(
-            kappa=min(p.kappa * f[0], 0.99),
             xi_m=p.xi_m * f[1],
             xi_p=p.xi_p * f[2],
             xi_g=p.xi_g * f[3],
             T_p=p.T_p * f[4],
             T_g=p.T_g * f[5],
-        )
+        ).with_stiffness_scale(f[0])
 
     def _post(self, rows, st, ok, elapsed, w0, w1, is_reset):
         m = len(rows)
@@ -348,6 +347,11 @@ class GearSpeedCore:
     def _set_plant(self, r: int, p: GearParams, equilibrium: bool = False) -> None:
         """Row ``r`` simulates the gear pair ``p`` from now on (the features' static references follow
         its load); ``equilibrium``: also restart it from the static equilibrium (a new episode)."""
+        if len(p.consts) != self.C.shape[1]:
+            raise ValueError(
+                f"a plant's parameters have {len(p.consts)} constants where the environment's have "
+                f"{self.C.shape[1]}: every plant of a family must have as many excitation harmonics as the base"
+            )
         self.C[r] = p.consts
         self.fs[r] = self.C[r, C_FS]
         x0 = np.zeros(K.NSTATE)

@@ -93,13 +93,13 @@ def _teeth(owner: str, name: str, value: Any) -> int:
 class ToothCrack:
     """A straight root crack on one tooth (tooth 0, the pair that enters contact at phase 0).
 
-    The crack starts at the tooth root on the loaded (tension) side, where the fillet meets the
-    root circle, and runs into the tooth at ``angle_deg`` above the normal to the tooth centre
+    The crack starts on the loaded (tension) side where the involute meets the fillet, and runs
+    into the tooth at ``angle_deg`` above the normal to the tooth centre
     line, to ``depth``. Sections of the tooth below the crack tip lose the material beyond the
     tip: area and second moment become those of the section from the far flank to the crack
     tip (Tian 2004; Chen and Shao 2011 case 1; crack parameters as in Ma et al. 2014). The
     fillet-foundation term is kept healthy. Limits: the crack tip stays on the loaded side of
-    the centre line (``depth cos(angle) <`` the root half-thickness, checked by the pair).
+    the centre line (``depth cos(angle) <`` the tooth's half-thickness there, checked by the pair).
 
     Attributes:
         depth: crack length q [m], > 0.
@@ -310,17 +310,20 @@ class SpurGear:
 
     def _crack_tip(self, crack: ToothCrack) -> tuple[float, float]:
         """(h_q, y_tip): the crack tip's distance from the centre line towards the loaded flank
-        and its height [m] in the tooth frame."""
+        and its height [m] in the tooth frame. The crack starts where the involute meets the
+        fillet (the form circle; Chen and Shao start it where the involute meets the base circle)."""
         g = self._g
-        ph = g["b1"] / g["pitch"]  # the root point (fillet at gamma = pi/2)
-        xr, yr = g["root"] * math.sin(ph), g["root"] * math.cos(ph)
+        tc, tb, rb = g["tau_c"], g["theta_b"], g["base"]
+        xc = rb * ((tc + tb) * math.cos(tc) - math.sin(tc))
+        yc = rb * ((tc + tb) * math.sin(tc) + math.cos(tc))
         nu = math.radians(crack.angle_deg)
-        return xr - crack.depth * math.cos(nu), yr + crack.depth * math.sin(nu)
+        return xc - crack.depth * math.cos(nu), yc + crack.depth * math.sin(nu)
 
     def root_half_thickness(self) -> float:
-        """Half chord of the tooth at the root circle [m] (the crack limit)."""
-        ph = self._g["b1"] / self._g["pitch"]
-        return self._g["root"] * math.sin(ph)
+        """Half thickness of the tooth where the involute starts [m] (the crack's limit)."""
+        g = self._g
+        tc, tb, rb = g["tau_c"], g["theta_b"], g["base"]
+        return rb * ((tc + tb) * math.cos(tc) - math.sin(tc))
 
 
 def _sainsot(c: tuple[float, ...], theta_f: float, h: float) -> float:

@@ -37,7 +37,11 @@ C_GG = 17  # gear weight along -y / (k_m0 b0)
 C_SIN_A0 = 18  # sin(alpha0), precomputed
 C_COS_A0 = 19  # cos(alpha0)
 C_MU = 20  # tooth sliding-friction coefficient (0 = the paper's eq. 10; analysis extension)
-N_CONSTS = 21
+C_NK = 21  # number N_k of stiffness harmonics in the tail (0: the single cosine kappa, phi_k above)
+C_NE = 22  # number N_e of TE harmonics in the tail (0: the single cosine E1, phi_e above)
+N_CONSTS = 23  # length of the fixed part; the harmonic tail follows it
+C_TAIL = N_CONSTS  # tail: kappa_n (cos, sin)(phi_kn), n = 1..N_k, then E_n / b0 (cos, sin)(phi_en), n = 1..N_e
+MAX_HARMONICS = 64
 
 MODELS = ("constant", "dynamic")
 
@@ -120,6 +124,19 @@ class GearParams:
             the pitch point and at the tooth-pair change), acting on the bearings; its moment on the
             gears is neglected. It is the simplest mechanism that moves the centres off the line of
             action and so makes the meshing angle psi fluctuate.
+        stiffness_harmonics: any periodic mesh stiffness as a Fourier series in the mesh phase phi,
+            k_m = k_m0 (1 + sum_n kappa_n cos(n phi + phi_kn)), given as ((kappa_1, phi_k1), ...,
+            (kappa_N, phi_kN)) [-, rad], N <= 64; the series must stay positive. Empty (default): the
+            single cosine ``kappa``, ``phi_k``. When given, ``kappa`` and ``phi_k`` are set to its
+            first harmonic (so they always describe it); one harmonic is exactly the single cosine.
+            :meth:`from_pair` fills it from a gear geometry, :func:`harmonics_from_samples` from a
+            sampled waveform.
+        te_harmonics: any periodic static transmission error e(phi) = sum_n e_n cos(n phi + phi_en),
+            ((e_1, phi_e1), ..., (e_N, phi_eN)) [m, rad], N <= 64, e.g. a measured TE through
+            :func:`harmonics_from_samples`. Empty (default): the single cosine ``e_m1``, ``phi_e``;
+            when given, ``e_m1`` and ``phi_e`` are set to its first harmonic. More than one TE
+            harmonic cannot be combined with ``friction`` (whose sliding direction is read from the
+            first harmonic's phase).
     """
 
     pressure_angle_deg: float = 20.0
@@ -146,11 +163,14 @@ class GearParams:
     b0: float | None = None
     gravity: float = 0.0
     friction: float = 0.0
+    stiffness_harmonics: tuple[tuple[float, float], ...] = ()
+    te_harmonics: tuple[tuple[float, float], ...] = ()
     _consts: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        self._set_harmonics()
         for f in fields(self):
-            if f.name.startswith("_"):
+            if f.name.startswith("_") or f.name in ("stiffness_harmonics", "te_harmonics"):
                 continue
             v = getattr(self, f.name)
             if f.name == "b0" and v is None:
@@ -168,10 +188,34 @@ class GearParams:
                 )
             object.__setattr__(self, f.name, float(v))
             _check_range(f.name, float(v))
+        if len(self.te_harmonics) > 1 and self.friction > 0.0:
+            raise ValueError(
+                "GearParams.friction must be 0 when te_harmonics has more than one harmonic "
+                f"(got friction={self.friction!r} and {len(self.te_harmonics)} TE harmonics)"
+            )
         consts = self._build_consts()
         if not np.all(np.isfinite(consts)):
             raise ValueError(f"GearParams give non-finite dimensionless constants: {self!r}")
         object.__setattr__(self, "_consts", consts)
+
+    def _set_harmonics(self) -> None:
+        """Validate the harmonic fields, store them as tuples of float pairs and copy their first
+        harmonic into kappa, phi_k / e_m1, phi_e."""
+        for name, amp_max in (("stiffness_harmonics", 1.0), ("te_harmonics", 1e-2)):
+            h = _harmonic_pairs(name, getattr(self, name), amp_max)
+            object.__setattr__(self, name, h)
+            if h:
+                first = ("kappa", "phi_k") if name == "stiffness_harmonics" else ("e_m1", "phi_e")
+                object.__setattr__(self, first[0], h[0][0])
+                object.__setattr__(self, first[1], h[0][1])
+        if len(self.stiffness_harmonics) > 1:
+            phi = np.linspace(0.0, 2.0 * math.pi, 256 * len(self.stiffness_harmonics), endpoint=False)
+            low = float(np.min(stiffness_factor(phi, self.stiffness_harmonics)))
+            if not low > 0.0:
+                raise ValueError(
+                    f"GearParams.stiffness_harmonics must keep the stiffness positive: "
+                    f"1 + sum kappa_n cos(n phi + phi_n) reaches {low:.4g}"
+                )
 
     # ---------------------------------------------------------------- derived quantities (SI)
     @property
@@ -263,6 +307,16 @@ class GearParams:
         c[C_SIN_A0] = math.sin(self.alpha0)
         c[C_COS_A0] = math.cos(self.alpha0)
         c[C_MU] = self.friction
+        nk = len(self.stiffness_harmonics) if len(self.stiffness_harmonics) > 1 else 0
+        ne = len(self.te_harmonics) if len(self.te_harmonics) > 1 else 0
+        c[C_NK] = nk
+        c[C_NE] = ne
+        # the tail holds (a cos(phase), a sin(phase)) per harmonic (kernels.mesh.excitation)
+        tail = [v for a, ph in self.stiffness_harmonics[:nk] for v in (a * math.cos(ph), a * math.sin(ph))]
+        tail += [v for a, ph in self.te_harmonics[:ne] for v in (a / b0 * math.cos(ph), a / b0 * math.sin(ph))]
+        if ne:
+            c[C_E1] = 1.0  # the series carries the amplitudes (kernels.mesh.excitation)
+        c = np.concatenate([c, np.asarray(tail, dtype=float)])
         c.setflags(write=False)
         return c
 
@@ -288,7 +342,7 @@ class GearParams:
             "lam_g": self.k_g / self.k_m0,
             "sigma_p": c[C_SIG_P],
             "sigma_g": c[C_SIG_G],
-            "E1": c[C_E1],
+            "E1": self.e_m1 / self.length_scale,  # first TE harmonic (c[C_E1] is 1 under a TE series)
             "F_s": c[C_FS],
             "A0": c[C_A0],
             "R": c[C_R],
@@ -304,8 +358,89 @@ class GearParams:
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain dict of the SI inputs (JSON-serialisable)."""
-        return {f.name: getattr(self, f.name) for f in fields(self) if not f.name.startswith("_")}
+        """Plain dict of the SI inputs (JSON-serialisable). The harmonic fields appear only when
+        set, as lists of [amplitude, phase], so the dict of single-cosine parameters is unchanged."""
+        out: dict[str, Any] = {}
+        for f in fields(self):
+            if f.name.startswith("_"):
+                continue
+            v = getattr(self, f.name)
+            if f.name in ("stiffness_harmonics", "te_harmonics"):
+                if not v:
+                    continue
+                v = [list(pair) for pair in v]
+            out[f.name] = v
+        return out
+
+    @classmethod
+    def from_pair(cls, pair: Any, n_harmonics: int = 16, **changes: Any) -> GearParams:
+        """Parameters of a gear geometry (:class:`gear_env.geometry.SpurPair`): module, tooth
+        numbers, pressure angle, the mean mesh stiffness ``k_m0`` and ``n_harmonics`` harmonics
+        of the mesh stiffness from the teeth, the masses and polar inertias of the gear bodies;
+        every other field from the defaults or ``changes`` (which also override these)."""
+        from .geometry import SpurPair
+
+        if not isinstance(pair, SpurPair):
+            raise ValueError(f"GearParams.from_pair takes a gear_env.geometry.SpurPair, got {type(pair).__name__}")
+        if pair.crack is not None:
+            raise ValueError(
+                "GearParams.from_pair: a cracked pair's stiffness repeats once per revolution, not per mesh "
+                "period; the kernels' excitation is periodic in the mesh phase (use the healthy pair)"
+            )
+        k0, kap, ph = pair.stiffness_harmonics(n_harmonics)
+        values: dict[str, Any] = {
+            "pressure_angle_deg": pair.pressure_angle_deg,
+            "module": pair.module,
+            "z_p": pair.teeth[0],
+            "z_g": pair.teeth[1],
+            "k_m0": k0,
+            "stiffness_harmonics": tuple(zip(kap.tolist(), ph.tolist())),
+            "m_p": pair.pinion.mass,
+            "m_g": pair.gear.mass,
+            "J_p": pair.pinion.polar_inertia,
+            "J_g": pair.gear.polar_inertia,
+        }
+        values.update(changes)
+        return cls(**values)
+
+    def with_te_scale(self, factor: float) -> GearParams:
+        """A copy with the whole static transmission error (``e_m1`` or every ``te_harmonics``
+        amplitude) multiplied by ``factor`` (>= 0)."""
+        if not (math.isfinite(factor) and factor >= 0.0):
+            raise ValueError(f"TE scale factor must be finite and >= 0, got {factor!r}")
+        if self.te_harmonics:
+            return self.replace(te_harmonics=tuple((a * factor, ph) for a, ph in self.te_harmonics))
+        return self.replace(e_m1=self.e_m1 * factor)
+
+    def with_stiffness_scale(self, factor: float) -> GearParams:
+        """A copy with the mesh-stiffness variation (``kappa``, or every ``stiffness_harmonics``
+        amplitude) multiplied by ``factor`` (>= 0), capped so that the stiffness stays positive:
+        kappa at 0.99, a series where its minimum would fall below 1 % of k_m0."""
+        if not (math.isfinite(factor) and factor >= 0.0):
+            raise ValueError(f"stiffness scale factor must be finite and >= 0, got {factor!r}")
+        if len(self.stiffness_harmonics) <= 1:
+            return self.replace(kappa=min(self.kappa * factor, 0.99), stiffness_harmonics=())
+        h = self.stiffness_harmonics
+        phi = np.linspace(0.0, 2.0 * math.pi, 256 * len(h), endpoint=False)
+        low = float(np.min(stiffness_factor(phi, h))) - 1.0  # the most negative variation
+        if low < 0.0:
+            factor = min(factor, 0.99 / -low)
+        return self.replace(stiffness_harmonics=tuple((a * factor, ph) for a, ph in h))
+
+    def stiffness_factor(self, phi: Any) -> np.ndarray:
+        """k_m(phi) / k_m0 at mesh phase ``phi`` [rad] (array), the kernels' stiffness factor."""
+        return stiffness_factor(np.asarray(phi, float), self.stiffness_harmonics or ((self.kappa, self.phi_k),))
+
+    def transmission_error(self, phi: Any) -> tuple[np.ndarray, np.ndarray]:
+        """(e(phi) [m], de/dphi [m/rad]) of the static transmission error at mesh phase ``phi`` [rad]."""
+        h = self.te_harmonics or ((self.e_m1, self.phi_e),)
+        phi = np.asarray(phi, float)
+        e = np.zeros_like(phi)
+        de = np.zeros_like(phi)
+        for n, (a, ph) in enumerate(h, start=1):
+            e += a * np.cos(n * phi + ph)
+            de -= n * a * np.sin(n * phi + ph)
+        return e, de
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> GearParams:
@@ -315,6 +450,77 @@ class GearParams:
         if unknown:
             raise ValueError(f"unknown GearParams field(s) {unknown}; valid fields: {valid}")
         return cls(**data)
+
+
+def stack_consts(rows: list[np.ndarray]) -> np.ndarray:
+    """Constants of several systems as one (n, width) float64 array for the batch kernels: rows
+    with shorter harmonic tails are padded with zeros (their ``C_NK``, ``C_NE`` say how much of the
+    tail the kernels read), so single-cosine rows are unchanged."""
+    width = max(len(r) for r in rows)
+    out = np.zeros((len(rows), width))
+    for i, r in enumerate(rows):
+        out[i, : len(r)] = r
+    return out
+
+
+def stiffness_factor(phi: np.ndarray, harmonics: tuple[tuple[float, float], ...]) -> np.ndarray:
+    """1 + sum_n kappa_n cos(n phi + phi_n) for ``harmonics`` = ((kappa_1, phi_1), ...), phi [rad]."""
+    out = np.ones_like(np.asarray(phi, float))
+    for n, (a, ph) in enumerate(harmonics, start=1):
+        out = out + a * np.cos(n * phi + ph)
+    return out
+
+
+def harmonics_from_samples(samples: Any, n_harmonics: int, relative: bool = False) -> tuple[float, tuple]:
+    """Fourier series of one period of a uniformly sampled periodic signal (a measured TE or
+    stiffness): returns (mean, ((a_1, phi_1), ..., (a_N, phi_N))) with
+    signal(phi) = mean + sum_n a_n cos(n phi + phi_n), phi = 2 pi j / len(samples) at sample j.
+
+    ``relative=True`` divides the amplitudes by the mean (the form of ``stiffness_harmonics``:
+    pass ``k_m0=mean``); otherwise they keep the samples' unit (``te_harmonics`` takes metres;
+    a TE's mean is a constant offset the static equilibrium absorbs and is dropped).
+    ``n_harmonics`` must be below half the number of samples.
+    """
+    x = np.asarray(samples, dtype=float)
+    if x.ndim != 1 or not np.all(np.isfinite(x)):
+        raise ValueError("samples must be a 1-D array of finite values (one period, uniformly sampled)")
+    if isinstance(n_harmonics, bool) or not isinstance(n_harmonics, (int, np.integer)):
+        raise ValueError(f"n_harmonics must be an integer in [1, {MAX_HARMONICS}], got {n_harmonics!r}")
+    if not 1 <= n_harmonics <= MAX_HARMONICS or 2 * n_harmonics >= len(x):
+        raise ValueError(
+            f"n_harmonics must be in [1, {MAX_HARMONICS}] and below half the {len(x)} samples, got {n_harmonics}"
+        )
+    X = np.fft.rfft(x) / len(x)
+    mean = float(X[0].real)
+    amp = 2.0 * np.abs(X[1 : n_harmonics + 1])
+    if relative:
+        if not mean > 0:
+            raise ValueError(f"relative harmonics need a positive mean, got {mean:g}")
+        amp = amp / mean
+    ph = np.angle(X[1 : n_harmonics + 1])
+    return mean, tuple((float(a), float(p)) for a, p in zip(amp, ph))
+
+
+def _harmonic_pairs(name: str, value: Any, amp_max: float) -> tuple[tuple[float, float], ...]:
+    """Validate a harmonic field: a sequence of at most MAX_HARMONICS (amplitude, phase) pairs."""
+    try:
+        rows = [tuple(r) for r in value]
+    except TypeError:
+        raise ValueError(f"GearParams.{name} must be a sequence of (amplitude, phase) pairs, got {value!r}") from None
+    if len(rows) > MAX_HARMONICS:
+        raise ValueError(f"GearParams.{name} takes at most {MAX_HARMONICS} harmonics, got {len(rows)}")
+    out = []
+    for i, r in enumerate(rows):
+        ok = len(r) == 2 and all(
+            not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating)) and math.isfinite(v)
+            for v in r
+        )
+        if not ok or not 0.0 <= r[0] <= amp_max or abs(r[1]) > 1e3:
+            raise ValueError(
+                f"GearParams.{name}[{i}] must be (amplitude in [0, {amp_max:g}], phase in [-1e3, 1e3] rad), got {r!r}"
+            )
+        out.append((float(r[0]), float(r[1])))
+    return tuple(out)
 
 
 def _checked_init(init: Any) -> Any:

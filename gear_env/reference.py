@@ -48,6 +48,10 @@ class RefConsts:
     alpha0: float
     g_p: float
     g_g: float
+    # the excitation as Fourier series in the mesh phase: ((kappa_n, phi_kn), ...) and
+    # ((E_n, phi_en), ...) [b0]; one term each for the paper's single cosines
+    stiffness: tuple[tuple[float, float], ...] = ()
+    te: tuple[tuple[float, float], ...] = ()
 
     @classmethod
     def from_params(cls, p: GearParams) -> RefConsts:
@@ -84,7 +88,21 @@ class RefConsts:
             alpha0=a0,
             g_p=p.m_p * p.gravity / (p.k_m0 * b0),
             g_g=p.m_g * p.gravity / (p.k_m0 * b0),
+            stiffness=tuple(p.stiffness_harmonics) or ((p.kappa, p.phi_k),),
+            te=tuple((a / b0, ph) for a, ph in p.te_harmonics) or ((p.e_m1 / b0, p.phi_e),),
         )
+
+
+def stiffness_factor(phi: float, k: RefConsts) -> float:
+    """k_m / k_m0 = 1 + sum_n kappa_n cos(n phi + phi_kn) at mesh phase phi."""
+    return 1.0 + sum(a * math.cos(n * phi + ph) for n, (a, ph) in enumerate(k.stiffness, start=1))
+
+
+def transmission_error(phi: float, k: RefConsts) -> tuple[float, float]:
+    """(e, de/dphi) [b0] of the static transmission error at mesh phase phi."""
+    e = sum(a * math.cos(n * phi + ph) for n, (a, ph) in enumerate(k.te, start=1))
+    de = -sum(n * a * math.sin(n * phi + ph) for n, (a, ph) in enumerate(k.te, start=1))
+    return e, de
 
 
 def mesh_geometry(q: np.ndarray, k: RefConsts, model: str) -> tuple[float, float]:
@@ -119,8 +137,9 @@ def mesh_quantities(y: np.ndarray, omega: float, k: RefConsts, model: str) -> tu
     psi, bd = mesh_geometry(q, k, model)
     s, c = math.sin(psi), math.cos(psi)
     dx, dy = q[0] - q[2], q[1] - q[3]
-    delta = dx * s - dy * c + q[4] - k.E1 * math.cos(phi + k.phi_e)
-    ddelta = (v[0] - v[2]) * s - (v[1] - v[3]) * c + v[4] + k.E1 * omega * math.sin(phi + k.phi_e)
+    e, de = transmission_error(phi, k)
+    delta = dx * s - dy * c + q[4] - e
+    ddelta = (v[0] - v[2]) * s - (v[1] - v[3]) * c + v[4] - omega * de
     if model == "dynamic":
         ddelta += _psi_dot(q, v, k) * (dx * c + dy * s)
     return delta, ddelta, bd, psi
@@ -143,7 +162,7 @@ def rhs(s: float, y: np.ndarray, omega: float, k: RefConsts, model: str, region:
     delta, ddelta, bd, psi = mesh_quantities(y, omega, k, model)
     reg = contact_region(delta, bd) if region is None else region
     f = delta - bd if reg > 0 else (delta + bd if reg < 0 else 0.0)
-    F = 2.0 * k.xi_m * ddelta + (1.0 + k.kappa * math.cos(y[10] + k.phi_k)) * f
+    F = 2.0 * k.xi_m * ddelta + stiffness_factor(y[10], k) * f
     s_, c_ = math.sin(psi), math.cos(psi)
     out = np.empty(11)
     out[0:5] = y[5:10]
@@ -172,7 +191,7 @@ def reference_initial_state(params: GearParams | None = None, model: str = "dyna
         q[1] = (k.F_s * c - k.g_p) / lam_p
         q[2] = k.F_s * s / lam_g
         q[3] = -(k.F_s * c + k.g_g) / lam_g
-        q[4] = bd + k.F_s + k.E1 * math.cos(k.phi_e) - ((q[0] - q[2]) * s - (q[1] - q[3]) * c)
+        q[4] = bd + k.F_s + transmission_error(0.0, k)[0] - ((q[0] - q[2]) * s - (q[1] - q[3]) * c)
         psi_new, bd_new = mesh_geometry(q, k, model)
         if abs(psi_new - psi) < 1e-16 and abs(bd_new - bd) < 1e-15:
             break

@@ -26,7 +26,7 @@ from .errors import SimulationDivergedError
 from .integration import NEWTON_MAX_ITER as NEWTON_MAX_ITER  # re-exported (older imports)
 from .integration import NEWTON_TOL as NEWTON_TOL
 from .integration import integrate
-from .params import C_E1, C_PHI_E, GearParams, model_code
+from .params import C_E1, C_PHI_E, GearParams, model_code, stack_consts
 
 SIM_COMPILE_TIME = "15 s on an idle 2-core machine, several times that under load"
 """What the first-use notice says the simulator kernels take to compile (measured: 13 s for both models)."""
@@ -424,9 +424,12 @@ class Trajectory:
         """dDelta/ds from the recorded state (the psi' term is omitted: it is ~1e-15, MODEL.md 6)."""
         d = self.data
         psi = d[:, K.REC_PSI]
-        c = self.params.consts
         sp, cp = np.sin(psi), np.cos(psi)
-        te = c[C_E1] * d[:, K.REC_OMEGA] * np.sin(d[:, K.REC_PHI] + c[C_PHI_E])
+        if not self.params.te_harmonics:
+            c = self.params.consts
+            te = c[C_E1] * d[:, K.REC_OMEGA] * np.sin(d[:, K.REC_PHI] + c[C_PHI_E])
+        else:  # the TE series: -omega de/dphi in b0 units
+            te = -d[:, K.REC_OMEGA] * self.params.transmission_error(d[:, K.REC_PHI])[1] / self.params.length_scale
         return (d[:, 5] - d[:, 7]) * sp - (d[:, 6] - d[:, 8]) * cp + d[:, 9] + te
 
     @property
@@ -589,7 +592,7 @@ def simulate_batch(
     w_end = w if omega_end is None else _check_omega_end(omega_end, n)
     nsp = resolve_steps(steps_per_period, float(min(w.min(), w_end.min())))
     per_row = len(ps) == n  # else one shared parameter set
-    C = np.stack([q.consts for q in (ps if per_row else ps * n)])
+    C = stack_consts([q.consts for q in (ps if per_row else ps * n)])
     if S is not None:
         X = np.repeat(S, n, axis=0) if len(S) == 1 else S
     else:

@@ -192,7 +192,7 @@ def test_crack_weakens_only_the_cracked_tooth():
         (dict(poisson=0.7), r"SpurPair.poisson must be in \[0, 0.5\]"),
         (dict(pressure_angle_deg=float("nan")), "SpurPair.pressure_angle_deg must be in"),
         (dict(face_width="20 mm"), "SpurPair.face_width must be a real number"),
-        (dict(crack=ToothCrack(depth=0.01, angle_deg=0.0)), "root half-thickness"),
+        (dict(crack=ToothCrack(depth=0.01, angle_deg=0.0)), "half-thickness"),
     ],
 )
 def test_bad_inputs_name_field_and_range(change, match):

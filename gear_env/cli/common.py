@@ -50,9 +50,10 @@ def float_range(lo: float = -math.inf, hi: float = math.inf, lo_open: bool = Fal
 # the model and its parameters (simulate, sweep, stability)
 # --------------------------------------------------------------------------------------------------
 def add_model_options(p: argparse.ArgumentParser, steps: bool = True) -> None:
-    """``--model``, ``--kappa`` and (with ``steps``) ``--steps-per-period``; read back by :func:`params_from_args`."""
+    """``--model``, the parameter options (:func:`add_params_options`) and (with ``steps``)
+    ``--steps-per-period``; read back by :func:`params_from_args`."""
     p.add_argument("--model", default="dynamic", choices=["constant", "dynamic"], help="backlash model")
-    p.add_argument("--kappa", type=float, default=None, help="mesh-stiffness harmonic amplitude (default 0.2)")
+    add_params_options(p)
     if steps:
         p.add_argument(
             "--steps-per-period",
@@ -62,11 +63,56 @@ def add_model_options(p: argparse.ArgumentParser, steps: bool = True) -> None:
         )
 
 
+def add_params_options(p: argparse.ArgumentParser) -> None:
+    """``--kappa``, ``--params FILE``, ``--pair FILE`` and ``--harmonics N``: read back by :func:`params_from_args`."""
+    p.add_argument("--kappa", type=float, default=None, help="mesh-stiffness harmonic amplitude (default 0.2)")
+    p.add_argument(
+        "--params",
+        metavar="JSON",
+        default=None,
+        help="GearParams fields as a JSON object (SI; may hold stiffness_harmonics, te_harmonics)",
+    )
+    p.add_argument(
+        "--pair",
+        metavar="JSON",
+        default=None,
+        help="a spur pair's geometry as a JSON object of gear_env.geometry.SpurPair keywords (SI): "
+        "k_m0, stiffness harmonics, masses and inertias from the teeth; --params fields override them",
+    )
+    p.add_argument(
+        "--harmonics",
+        type=int_range(1, 64),
+        default=16,
+        help="stiffness harmonics taken from --pair, 1-64 (default 16)",
+    )
+
+
 def params_from_args(args: argparse.Namespace) -> Any:
-    """The :class:`~gear_env.params.GearParams` the model options describe (a ValueError names the field)."""
+    """The :class:`~gear_env.params.GearParams` the parameter options describe (a ValueError names the field)."""
+    from ..io import read_json
     from ..params import GearParams
 
-    return GearParams() if args.kappa is None else GearParams(kappa=args.kappa)
+    fields: dict[str, Any] = {}
+    if getattr(args, "params", None):
+        fields = read_json(args.params, "--params")
+        if not isinstance(fields, dict):
+            raise ValueError(f"--params {args.params!r} must hold a JSON object of GearParams fields")
+    if args.kappa is not None:
+        if getattr(args, "pair", None) or "stiffness_harmonics" in fields:
+            raise ValueError("--kappa cannot be combined with a stiffness series (--pair or stiffness_harmonics)")
+        fields["kappa"] = args.kappa
+    if getattr(args, "pair", None):
+        from ..geometry import SpurPair
+
+        kw = read_json(args.pair, "--pair")
+        if not isinstance(kw, dict):
+            raise ValueError(f"--pair {args.pair!r} must hold a JSON object of SpurPair keywords")
+        try:
+            pair = SpurPair(**kw)
+        except TypeError as exc:
+            raise ValueError(f"--pair {args.pair!r}: {exc}") from None
+        return GearParams.from_pair(pair, args.harmonics, **fields)
+    return GearParams.from_dict(fields)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -169,6 +215,7 @@ __all__ = [
     "writes",
     "float_range",
     "int_range",
+    "add_params_options",
     "params_from_args",
     "simulate_bytes",
     "sweep_bytes",

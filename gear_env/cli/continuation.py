@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .common import writes
+from .common import add_params_options, params_from_args, writes
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -35,7 +35,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--tol", type=float, default=1e-9, help="Newton tolerance on |P^N(x) - x| (1e-9)")
     p.add_argument("--ds-max", type=float, default=0.04, help="largest arclength step (0.04)")
     p.add_argument("--time-limit", type=float, default=None, help="seconds per model; stop at the last point then")
-    p.add_argument("--kappa", type=float, default=None, help="mesh-stiffness harmonic amplitude (default 0.2)")
+    add_params_options(p)
     p.add_argument(
         "--sweep-points",
         type=int,
@@ -96,9 +96,8 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace) -> int:
     from ..analysis.continuation import continue_orbits
     from ..io import atomic_write_text
-    from ..params import GearParams
 
-    params = GearParams() if args.kappa is None else GearParams(kappa=args.kappa)
+    params = params_from_args(args)
     models = ["constant", "dynamic"] if args.model == "both" else [args.model]
     results: dict[str, dict[str, Any]] = {}
     complete = True

@@ -53,12 +53,15 @@ from ..params import (
     C_GP,
     C_KAPPA,
     C_MU,
+    C_NE,
+    C_NK,
     C_PHI_E,
     C_PHI_K,
     C_R,
     C_SIG_G,
     C_SIG_P,
     C_SIN_A0,
+    C_TAIL,
     C_XI_BG,
     C_XI_BP,
     C_XI_M,
@@ -126,8 +129,44 @@ def step_consts(c):
 
 @kernel_inline
 def excitation(phi, c):
-    """(cos(phi + phi_e), sin(phi + phi_e), 1 + kappa cos(phi + phi_k)) at mesh phase phi."""
-    return math.cos(phi + c[C_PHI_E]), math.sin(phi + c[C_PHI_E]), 1.0 + c[C_KAPPA] * math.cos(phi + c[C_PHI_K])
+    """The periodic excitation at mesh phase phi: (ce, se, kk).
+
+    The TE enters the deflection as E1 ce and its rate as E1 omega se (:func:`deflection_t`), the
+    stiffness factor kk multiplies f(Delta) (:func:`force_t`). Single cosines (the paper's model,
+    ``c[C_NK] = c[C_NE] = 0``): ce, se = cos, sin(phi + phi_e) and kk = 1 + kappa cos(phi + phi_k),
+    exactly as before the series existed. Fourier series (``GearParams.stiffness_harmonics`` /
+    ``te_harmonics``, packed after ``C_TAIL`` as (a_n, b_n) = amplitude (cos, sin) of the phase):
+    kk = 1 + sum_n kappa_n cos(n phi + phi_kn) and, with E1 = 1, ce = e(phi)/b0 = sum_n E_n
+    cos(n phi + phi_en), se = -de/dphi / b0. cos(n phi), sin(n phi) come from one cos and one sin
+    by the angle-addition recurrence, so N harmonics cost two trigonometric calls, not N.
+    """
+    nk = int(c[C_NK])
+    ne = int(c[C_NE])
+    if nk == 0 and ne == 0:
+        return math.cos(phi + c[C_PHI_E]), math.sin(phi + c[C_PHI_E]), 1.0 + c[C_KAPPA] * math.cos(phi + c[C_PHI_K])
+    c1 = math.cos(phi)
+    s1 = math.sin(phi)
+    cn = 1.0
+    sn = 0.0
+    kv = 0.0
+    ce = 0.0
+    se = 0.0
+    j = C_TAIL + 2 * nk
+    for n in range(1, max(nk, ne) + 1):
+        cn, sn = cn * c1 - sn * s1, sn * c1 + cn * s1  # cos, sin(n phi)
+        if n <= nk:
+            kv += c[C_TAIL + 2 * n - 2] * cn - c[C_TAIL + 2 * n - 1] * sn
+        if n <= ne:
+            a = c[j + 2 * n - 2]
+            b = c[j + 2 * n - 1]
+            ce += a * cn - b * sn
+            se += n * (a * sn + b * cn)
+    if ne == 0:
+        ce = math.cos(phi + c[C_PHI_E])
+        se = math.sin(phi + c[C_PHI_E])
+    if nk == 0:
+        kv = c[C_KAPPA] * math.cos(phi + c[C_PHI_K])
+    return ce, se, 1.0 + kv
 
 
 @kernel_inline
