@@ -204,10 +204,11 @@ class GearSpeedCore:
             pc, st = self._pc_buf, self._st_buf
             x = self.X[r].copy()
             a = self.A[r].copy()
-            status, _, el, _, _, _ = integrate(
+            run = integrate(
                 x, a, self._C_ro[r], self.code, float(w0[0]), float(w1[0]), periods, cfg.steps_per_period,
                 poincare=pc[0], stats=st[0],
             )  # fmt: skip
+            status, el = run.status, run.elapsed
             good = status == K.OK and math.isfinite(float(st[0].sum()))
             if good:
                 self.X[r] = x
@@ -218,9 +219,8 @@ class GearSpeedCore:
         W0 = np.ascontiguousarray(w0, float)
         W1 = np.ascontiguousarray(w1, float)
         # SIMD across the rows from LANES_MIN up (same numbers as the scalar batch kernel)
-        status, _, elapsed, pc, st, _ = integrate(
-            X, A, self.C[rows], self.code, W0, W1, periods, cfg.steps_per_period, simd=m >= LANES_MIN
-        )
+        run = integrate(X, A, self.C[rows], self.code, W0, W1, periods, cfg.steps_per_period, simd=m >= LANES_MIN)
+        status, elapsed, pc, st = run.status, run.elapsed, run.poincare, run.stats
         # the kernel flags non-finite or exploding states; a non-finite statistic would mean the same
         ok = (status == K.OK) & np.isfinite(st).all(axis=1)
         self.X[rows[ok]] = X[ok]

@@ -32,6 +32,8 @@ NEWTON_MAX_ITER = 12
 """Newton iterations per Newmark step before the step is split."""
 NEWTON_TOL = 1e-10
 """Relative tolerance of a Newton update of the dynamic model (see ``kernels.newton_iter_t``)."""
+TOL_N_START = 32
+"""First coarse step count per mesh period of an error-controlled interval (``err_tol``)."""
 
 
 class IntervalRun(NamedTuple):
@@ -54,6 +56,8 @@ class IntervalRun(NamedTuple):
     poincare: Any
     stats: Any
     record: Any = None
+    steps_last: Any = None
+    """With ``err_tol``: the coarse run's steps per mesh period chosen for the last period."""
 
 
 def integrate(
@@ -72,6 +76,8 @@ def integrate(
     simd: bool = True,
     max_iter: int = NEWTON_MAX_ITER,
     tol: float = NEWTON_TOL,
+    err_tol: float | None = None,
+    n_start: int = TOL_N_START,
 ) -> IntervalRun:
     """Advance one system (x of shape (10,)) or a batch (x of shape (n, 10)) in place.
 
@@ -96,6 +102,9 @@ def integrate(
         simd: batch only: step the rows together (``batch_kernels``, one model code) rather
             than one after the other.
         max_iter, tol: Newton settings (the defaults are those of every published result).
+        err_tol: one system, statistics only: integrate with the error per mesh period controlled
+            (:func:`gear_env.kernels.integrate_tol`, b0 units) instead of ``steps_per_period``
+            steps; ``n_start`` is the coarse run's first step count per mesh period.
 
     Returns:
         :class:`IntervalRun`.
@@ -112,6 +121,12 @@ def integrate(
             poincare = np.empty((periods, K.N_PC))
         if stats is None:
             stats = np.empty(K.N_STATS)
+        if err_tol is not None:
+            cost = np.empty(periods)
+            status, done, el, n_last = K.integrate_tol(
+                x, a, omega0, omega1, periods, n_start, c, dynamic, poincare, stats, max_iter, tol, err_tol, cost
+            )
+            return IntervalRun(status, done, el, poincare, stats, None, n_last)
         status, done, el = K.integrate_stats_lazy(
             x, a, 0.0, omega0, omega1, periods, steps_per_period, c, dynamic, poincare, stats, max_iter, tol, True
         )

@@ -25,7 +25,7 @@ from ._numba_cache import announce_compile
 from .errors import SimulationDivergedError
 from .integration import NEWTON_MAX_ITER as NEWTON_MAX_ITER  # re-exported (older imports)
 from .integration import NEWTON_TOL as NEWTON_TOL
-from .integration import integrate
+from .integration import TOL_N_START, integrate
 from .params import C_E1, C_PHI_E, GearParams, model_code, stack_consts
 
 SIM_COMPILE_TIME = "15 s on an idle 2-core machine, several times that under load"
@@ -80,6 +80,18 @@ def check_steps(steps_per_period: Any) -> int:
     if n > 100_000:
         raise ValueError(f"steps_per_period must be in [8, 100000], got {steps_per_period!r}")
     return n
+
+
+def check_tol(tol: Any) -> float | None:
+    """The error tolerance per mesh period (b0 units) validated: None or a number in [1e-8, 0.1]."""
+    if tol is None:
+        return None
+    if isinstance(tol, bool) or not isinstance(tol, (int, float, np.integer, np.floating)):
+        raise ValueError(f"tol must be a number in [1e-8, 0.1] (b0 units) or None, got {tol!r}")
+    t = float(tol)
+    if not (math.isfinite(t) and 1e-8 <= t <= 0.1):
+        raise ValueError(f"tol must be a number in [1e-8, 0.1] (b0 units) or None, got {tol!r}")
+    return t
 
 
 def default_steps_per_period(omega: float) -> int:
@@ -266,6 +278,12 @@ class GearSimulator:
             :meth:`record` call (192 for omega >= 0.27, more below).
         omega: meshing frequency Omega/omega_n at the start.
         initial_state: 10 values in b0 units, or None for MODEL.md A10.
+        tol: error per mesh period (b0 units, all 10 states) instead of a step count: each mesh
+            period of :meth:`advance` is integrated with contact changes located, with N and 2N
+            steps, N chosen so that their estimated error is at most ``tol``, and Richardson-
+            extrapolated (:func:`gear_env.kernels.integrate_tol`; measured errors in
+            docs/SIMULATOR.md). :meth:`record` then takes fixed steps, twice the last N. In
+            [1e-8, 0.1]; not together with ``steps_per_period``. None (default): fixed steps.
     """
 
     def __init__(
@@ -275,8 +293,13 @@ class GearSimulator:
         steps_per_period: int | None = None,
         omega: float = 1.0,
         initial_state: Any = None,
+        tol: float | None = None,
     ):
         self.params = _check_params(params)
+        self.tol = check_tol(tol)
+        if self.tol is not None and steps_per_period is not None:
+            raise ValueError(f"give steps_per_period or tol, not both (got {steps_per_period!r} and {tol!r})")
+        self._n_tol = TOL_N_START
         announce_compile("drivers", "the simulator kernels", SIM_COMPILE_TIME)  # once per process, not per step
         self.model = model
         self.model_code = model_code(model)
@@ -323,7 +346,13 @@ class GearSimulator:
         w1 = w0 if omega_end is None else check_omega(omega_end, "omega_end")
         x = self.x.copy()
         a = self.a.copy()
-        r = integrate(x, a, self._consts, self.model_code, w0, w1, n, self._steps(w0, w1))
+        if self.tol is not None:
+            r = integrate(x, a, self._consts, self.model_code, w0, w1, n, 0, err_tol=self.tol, n_start=self._n_tol)
+            if r.status == K.OK:
+                self._n_tol = int(r.steps_last)
+                self.steps_per_period = 2 * self._n_tol
+        else:
+            r = integrate(x, a, self._consts, self.model_code, w0, w1, n, self._steps(w0, w1))
         if r.status != K.OK:
             self._raise(r.status, r.done, w0)
         self.x, self.a = x, a
@@ -339,7 +368,7 @@ class GearSimulator:
         w1 = w0 if omega_end is None else check_omega(omega_end, "omega_end")
         x = self.x.copy()
         a = self.a.copy()
-        nsp = self._steps(w0, w1)
+        nsp = 2 * self._n_tol if self.tol is not None else self._steps(w0, w1)
         r = integrate(x, a, self._consts, self.model_code, w0, w1, n, nsp, record=True)
         if r.status != K.OK:
             self._raise(r.status, (r.done - 1) // nsp, w0)
@@ -492,6 +521,7 @@ def simulate(
     steps_per_period: int | None = None,
     params: GearParams | None = None,
     initial_state: Any = None,
+    tol: float | None = None,
 ) -> Trajectory:
     """Simulate the gear pair at a fixed meshing frequency.
 
@@ -504,6 +534,9 @@ def simulate(
             :func:`default_steps_per_period` (omega) (192 for omega >= 0.27, more below).
         params: physical parameters (SI); default Table 1 with kappa = 0.2.
         initial_state: 10 values in b0 units, or None for the static equilibrium (A10).
+        tol: error per mesh period (b0 units) instead of ``steps_per_period``: the transient is
+            integrated error-controlled and the recorded periods with twice the coarse step count
+            that met ``tol`` at its end (see :class:`GearSimulator`).
 
     Returns:
         :class:`Trajectory` of the recorded periods (time series and Poincare samples).
@@ -515,7 +548,7 @@ def simulate(
     w = check_omega(omega)
     check_count(periods, "periods")
     tr = check_count(transient, "transient", 0)
-    sim = GearSimulator(params, model, steps_per_period, w, initial_state)
+    sim = GearSimulator(params, model, steps_per_period, w, initial_state, tol)
     if tr > 0:
         sim.advance(tr)
     traj = sim.record(periods)

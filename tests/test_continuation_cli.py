@@ -90,3 +90,28 @@ def test_plot_takes_plain_data():
     assert "-" in styles and "--" in styles
     with pytest.raises(ValueError, match="results"):
         plot_frequency_response({})
+
+
+def test_default_run_follows_the_cascade_to_max_period_and_exits_0(tmp_path, capsys):
+    """The default command (dynamic model, [0.05, 3], --max-period 8) succeeds: the two period-4
+    branches that stop at the same orbit near omega 0.4392 (a grazing corner, from both ends) are
+    recognised as one branch, and every branch is complete. With --max-period 2 the period doublings
+    of the period-2 branch are notes, not branches, and the run still exits 0."""
+    out = tmp_path / "c.json"
+    assert main(["continuation", "--json", str(out), "--quiet"]) == 0
+    d = json.loads(out.read_text())
+    assert d["complete"] is True
+    assert all("no period-8 branch found" in m for m in d["messages"])  # switching tried, not a branch failure
+    assert all(b["complete"] for b in d["branches"])
+    met = [b for b in d["branches"] if b["stop_reason"].startswith("met branch")]
+    assert len(met) == 2 and {b["period"] for b in met} == {4}
+    assert abs(met[0]["omega"][-1] - met[1]["omega"][-1]) < 1e-3
+    assert max(b["period"] for b in d["branches"]) <= 8
+    out2 = tmp_path / "c2.json"
+    rc = main(["continuation", "--omega-min", "0.05", "--omega-max", "0.7", "--max-period", "2", "--json", str(out2),
+               "--quiet"])  # fmt: skip
+    assert rc == 0
+    d2 = json.loads(out2.read_text())
+    assert max(b["period"] for b in d2["branches"]) == 2 and d2["complete"] is True
+    assert any("period-4 branch is not followed (max_period=2)" in n for n in d2["notes"])
+    assert "note: period doubling" in capsys.readouterr().out

@@ -219,3 +219,37 @@ def test_cli_sweep_notes_unsettled_points(capsys):
     assert main(args) == 0
     note = next(line for line in capsys.readouterr().out.splitlines() if "still drifting" in line)
     assert "2.3700" in note and "2.5000" in note and "2.4500" not in note and "--transient" in note
+
+
+# states of the 300-point forward sweeps (``sweep(np.linspace(0.05, 3, 300), model=M)``) just before
+# the point: two torus points the 200-period windows labelled chaotic, and a chaotic point
+_TORUS_DYN_1905 = (1.9048494983277593, [0.026284067120993442, -0.07221488090635964, 0.033098516918254724,
+                   -0.0909374278503412, 1.1708474613194406, 0.1752940570102414, -0.48161646340022785,
+                   -0.07563023895828504, 0.20779237376584522, -0.04564380040712749])  # fmt: skip
+_TORUS_CONST_2270 = (2.269899665551839, [-0.04455165165294724, 0.12240465691588134, 0.07461568389009074,
+                     -0.20500490662518855, 1.2664269473472336, 0.1715264319927167, -0.47126499873960953,
+                     -0.08205604235552869, 0.22544712350162718, 0.04897995749482172])  # fmt: skip
+_CHAOS_DYN_0514 = (0.5137123745819399, [-0.0035280803182323774, 0.009693321008365724, -0.005095512710611638,
+                   0.013999806112949098, 1.2670869527368647, -0.02845232822874247, 0.07817212933938104,
+                   0.021974775794867226, -0.06037520029397545, 0.20362035627088415])  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "model, point, label",
+    [("dynamic", _TORUS_DYN_1905, "quasi-periodic"), ("constant", _TORUS_CONST_2270, "quasi-periodic"),
+     ("dynamic", _CHAOS_DYN_0514, "chaotic")],
+)  # fmt: skip
+def test_marginal_chaotic_labels_are_reexamined_over_longer_windows(model, point, label):
+    """A chaotic label from an exponent within CHAOS_MARGIN bands of zero is re-examined with the
+    perturbed copy running longer (issue 24): the torus points labelled chaotic from 600 periods
+    (pooled exponents 0.0025 and 0.0023) become quasi-periodic (their accumulated stretch stops
+    growing), the weakly chaotic point at 0.514 stays chaotic (its stretch grows by ~2.2 per
+    window)."""
+    omega, x = point
+    cfg = SweepConfig(model, "forward", 300, 200, GearParams(), None, True, True)
+    r = run_point(cfg, omega, np.array(x))
+    assert r.regime == label
+    if label == "chaotic":
+        assert r.lyapunov > 5e-4
+    else:
+        assert abs(r.lyapunov) <= 5e-4

@@ -62,6 +62,15 @@ CORNER_DS = 1e-3
 change: the map is only piecewise smooth), not a curve to resolve."""
 COMPLEX_TOL = 1e-7
 """A multiplier with |Im mu| <= COMPLEX_TOL counts as real."""
+MAX_PERIOD = 8
+"""Default ``max_period``: a period-doubling cascade is followed up to period-8 orbits; a period
+doubling of a period-8 branch is reported (a bifurcation point) but not switched onto."""
+MEET_OMEGA = 1e-3
+"""Two branches of one period whose continuations both stop (step size) within this distance in
+omega, on the same orbit (:data:`MEET_GAP`), are one branch traced from its two ends: they met."""
+MEET_GAP = 1e-3
+"""Largest difference (b0, relative to 1 + max|x|) of the Poincare points of two stopped branch
+ends, over the cyclic shifts of the orbit, for the ends to count as the same orbit."""
 
 
 # ----------------------------------------------------------------------------- results
@@ -164,6 +173,8 @@ class ContinuationResult:
     bifurcations: list[BifurcationPoint] = field(default_factory=list)
     messages: list[str] = field(default_factory=list)
     elapsed: float = 0.0
+    notes: list[str] = field(default_factory=list)
+    """Where the run stopped by design: period doublings not followed because of ``max_period``."""
 
     @property
     def complete(self) -> bool:
@@ -179,6 +190,7 @@ class ContinuationResult:
             "branches": [b.to_json_dict() for b in self.branches],
             "bifurcations": [b.to_json_dict() for b in self.bifurcations],
             "messages": list(self.messages),
+            "notes": list(self.notes),
             "complete": bool(self.complete),
         }
 
@@ -424,6 +436,7 @@ class _Continuer:
         self.maps: dict[int, Any] = {}
         self.map_factory = map_factory if map_factory is not None else (lambda n: OrbitMap(model, params, n))
         self.switch_queue: list[tuple[int, BifurcationPoint, _Point]] = []
+        self.stopped_ends: dict[int, _Point] = {}  # branch -> last point, for branches stopped by the step size
 
     def omap(self, period: int) -> OrbitMap:
         if period not in self.maps:
@@ -483,8 +496,14 @@ class _Continuer:
                 amplitude_delta=p.amp_d,
             )  # fmt: skip
             found.append(bp)
-            if kind == "period-doubling" and 2 * period <= self.max_period:
-                self.switch_queue.append((bi, bp, p))
+            if kind == "period-doubling":
+                if 2 * period <= self.max_period:
+                    self.switch_queue.append((bi, bp, p))
+                else:
+                    self.result.notes.append(
+                        f"period doubling at omega={p.omega:.6f} of the period-{period} branch {bi}: the "
+                        f"period-{2 * period} branch is not followed (max_period={self.max_period})"
+                    )
         return found, None
 
     # -- one branch
@@ -519,6 +538,7 @@ class _Continuer:
                 if ds < self.ds_min:
                     reason = f"step size fell below ds_min={self.ds_min:g} at omega={p.omega:.6f}: {why}"
                     complete = False
+                    self.stopped_ends[bi] = p
                     break
                 continue
             q.t = tq
@@ -557,8 +577,37 @@ class _Continuer:
                     reason = f"rejoined the period-{period // 2} branch at omega={w:.6f}"
                     break
         self.result.branches.append(_make_branch(period, pts, parent, reason, complete))
-        if not complete:
+        if not complete and not self._met(bi):
             self.result.messages.append(f"branch {bi} (period {period}): {reason}")
+
+    def _met(self, bi: int) -> bool:
+        """If branch ``bi`` stopped (step size) where another stopped branch of the same period
+        stopped, on the same orbit (:data:`MEET_OMEGA`, :data:`MEET_GAP`), the two are one branch
+        traced from both ends: mark both complete, drop the other's failure message, return True.
+        (Where the two ends meet the map is not smooth enough for Newton: a grazing corner.)"""
+        q = self.stopped_ends.get(bi)
+        if q is None:
+            return False
+        for bj, p in self.stopped_ends.items():
+            if bj == bi or p.pc.shape != q.pc.shape or abs(p.omega - q.omega) > MEET_OMEGA:
+                continue
+            n = q.pc.shape[0]
+            scale = 1.0 + float(np.max(np.abs(q.pc)))
+            gap = min(float(np.max(np.abs(np.roll(p.pc, k, axis=0) - q.pc))) for k in range(n))
+            if gap > MEET_GAP * scale:
+                continue
+            for a, b in ((bi, bj), (bj, bi)):
+                br = self.result.branches[a]
+                br.complete = True
+                br.stop_reason = (
+                    f"met branch {b} (the same period-{br.period} orbit followed from its other end) at "
+                    f"omega={self.stopped_ends[a].omega:.6f}; {br.stop_reason}"
+                )
+            prefix = f"branch {bj} (period "
+            self.result.messages = [m for m in self.result.messages if not m.startswith(prefix)]
+            del self.stopped_ends[bj], self.stopped_ends[bi]
+            return True
+        return False
 
     def start_primary(self, omega0: float, direction: float, transient: int, x0: Any = None) -> list[_Point]:
         omap = self.omap(1)
@@ -635,7 +684,7 @@ def continue_orbits(
     max_points: int = 2000,
     max_iter: int = 12,
     locate_tol: float = 1e-3,
-    max_period: int = 16,
+    max_period: int = MAX_PERIOD,
     max_switches: int = 8,
     grazing: bool = True,
     transient: int = 300,
@@ -657,7 +706,8 @@ def continue_orbits(
         max_iter: Newton iterations per corrector (>= 2).
         locate_tol: bifurcations are bisected to this fraction of the step they lie in
             (in (0, 0.5]).
-        max_period: branch switching at period-doubling points stops at this period (1..256).
+        max_period: branch switching at period-doubling points stops at this period (1..256; default
+            :data:`MAX_PERIOD` = 8: a period doubling of a period-8 branch is a note, not a branch).
         max_switches: at most this many period-doubling switches in all (>= 0).
         grazing: detect grazing (contact boundary touched) as well.
         transient: mesh periods simulated to start the primary branch.
@@ -747,7 +797,7 @@ def continue_map(
     max_points: int = 2000,
     max_iter: int = 12,
     locate_tol: float = 1e-3,
-    max_period: int = 16,
+    max_period: int = MAX_PERIOD,
     max_switches: int = 8,
     time_limit: float | None = None,
 ) -> ContinuationResult:

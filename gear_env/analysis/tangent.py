@@ -48,7 +48,8 @@ INFO_SWITCHES = 6  # contact-region changes over the interval (step ends, start 
 INFO_SEP = 7  # fraction of steps ending with the teeth apart
 INFO_SPLITS = 8  # steps that needed sub-steps
 INFO_BACK = 9  # fraction of steps ending in back-side contact
-N_INFO = 10
+INFO_LOCATED = 10  # steps split at a located contact change (``corrected`` = 2)
+N_INFO = 11
 
 
 @K.kernel_inline
@@ -179,6 +180,73 @@ def _step_tangent(T, J, s1, ce, se, kk, omega, hc, k, dynamic, region, Mn, R, ol
                 T[10 + i, c_] = acc
 
 
+THETA_FD = 1e-6
+"""Step of the central difference in the split fraction theta of a located contact change
+(:func:`_located_tangent`)."""
+
+
+@K.kernel_inline
+def _gap_gradient(s, ce, se, omega, k, dynamic, side):
+    """d(Delta - side B_d)/dq at the state tuple s (5 entries; the gap does not depend on v)."""
+    delta, ddelta, bd, f, reg, sp, cp, db0, db1, dp0, dp1 = K.mesh_t(s, ce, se, omega, k, dynamic)
+    g = K.deflection_gradient_t(sp, cp)
+    P = (s[0] - s[2]) * cp + (s[1] - s[3]) * sp
+    return (
+        g[0] + P * dp0 - side * db0,
+        g[1] + P * dp1 - side * db1,
+        g[2] - P * dp0 + side * db0,
+        g[3] - P * dp1 + side * db1,
+        g[4],
+    )
+
+
+@K.kernel
+def _located_tangent(T, J, J2, Mn, R, Tm, s, sm, wm, a1, th, reg0, side, phi_a, dphi, omega, ce, se, kk, c, k,
+                     dynamic, max_iter, tol):  # fmt: skip
+    """Take a step split at the located contact change (fraction ``th``, state ``sm`` there, see
+    ``kernels.crossing_t``) and propagate T through it, exactly: the tangents of the two parts,
+    each on its branch, plus the dependence of the split point on the start state,
+    T += dS/dtheta (x) dtheta/dx, with dtheta/dx = -(grad gap . dsm/dx) / (dgap/dtheta) from the
+    crossing condition gap(sm) = 0, and dS/dtheta (the change of the step's end state with the split
+    point at fixed start) and dgap/dtheta by central differences in theta (:data:`THETA_FD`).
+    Returns (ok, end state, F, region, Delta, B_d, sin psi, cos psi)."""
+    ok, _sm, _wm, s2, F, region, delta, bd, sp, cp = K.split_at_t(
+        s, a1, th, reg0, phi_a, dphi, omega, omega, ce, se, kk, c, k, dynamic, max_iter, tol
+    )
+    okp, smp, wmp, s2p, _F, _r, _d, _b, _s, _c = K.split_at_t(
+        s, a1, th + THETA_FD, reg0, phi_a, dphi, omega, omega, ce, se, kk, c, k, dynamic, max_iter, tol
+    )
+    okm, smm, wmm, s2m, _F, _r, _d, _b, _s, _c = K.split_at_t(
+        s, a1, th - THETA_FD, reg0, phi_a, dphi, omega, omega, ce, se, kk, c, k, dynamic, max_iter, tol
+    )
+    if not (ok and okp and okm):
+        return False, s2, F, region, delta, bd, sp, cp
+    cem, sem, kkm = K.excitation(phi_a + th * dphi, c)
+    _step_tangent(T, J, sm, cem, sem, kkm, wm, K.step_coeffs(th * dphi / omega, k), k, dynamic, reg0, Mn, R, reg0,
+                  -1.0, J2)  # fmt: skip
+    ncol = T.shape[1]
+    for r_ in range(15):
+        for c_ in range(ncol):
+            Tm[r_, c_] = T[r_, c_]
+    _step_tangent(T, J, s2, ce, se, kk, omega, K.step_coeffs((1.0 - th) * dphi / omega, k), k, dynamic, region, Mn,
+                  R, region, -1.0, J2)  # fmt: skip
+    cep, sep_, kkp = K.excitation(phi_a + (th + THETA_FD) * dphi, c)
+    cen, sen, kkn = K.excitation(phi_a + (th - THETA_FD) * dphi, c)
+    mp = K.mesh_t(smp, cep, sep_, omega, k, dynamic)
+    mm = K.mesh_t(smm, cen, sen, omega, k, dynamic)
+    dgap = ((mp[0] - side * mp[2]) - (mm[0] - side * mm[2])) / (2.0 * THETA_FD)
+    if dgap == 0.0:
+        return False, s2, F, region, delta, bd, sp, cp
+    gg = _gap_gradient(sm, cem, sem, omega, k, dynamic, side)
+    for c_ in range(ncol):
+        dth = (
+            -(gg[0] * Tm[0, c_] + gg[1] * Tm[1, c_] + gg[2] * Tm[2, c_] + gg[3] * Tm[3, c_] + gg[4] * Tm[4, c_]) / dgap
+        )
+        for r_ in range(15):
+            T[r_, c_] += (s2p[r_] - s2m[r_]) / (2.0 * THETA_FD) * dth
+    return True, s2, F, region, delta, bd, sp, cp
+
+
 @K.kernel
 def tangent_map(x, omega, n_periods, n_steps, c, dynamic, max_iter, tol, jac, pc, info, corrected):
     """Advance ``x`` (10, in place) by ``n_periods`` mesh periods at constant ``omega`` from mesh
@@ -196,6 +264,16 @@ def tangent_map(x, omega, n_periods, n_steps, c, dynamic, max_iter, tol, jac, pc
     each (:func:`_step_tangent`): the monodromy of the ODE to O(h^2) rather than O(h) per contact
     change (the discrete map's own Jacobian jumps each time a contact change moves from one step
     to the next, a sawtooth of ~0.04 in |mu| at 192 steps per period).
+
+    ``corrected`` = 2 (located): a step whose end lies in another contact region than its start is
+    split at the contact change, located to 1e-13 of the step (``kernels.crossing_t``): the part
+    before it is taken with the force held on the old branch, the rest from the crossing as a
+    normal step. The map then changes smoothly with omega and x (no contact change sits inside a
+    step), and ``jac`` is the product of the parts' exact tangents, each on its own branch; it
+    omits the derivative of the crossing time, whose factor (the change of the step's end with the
+    split point) vanishes for the exact flow because the force is continuous at the crossing, so
+    ``jac`` is the monodromy of the ODE to O(h^2) and smooth in omega. The trajectory is no longer
+    bit-identical to ``kernels.integrate_stats`` (it differs at O(h^2) from the unlocated one).
     """
     k = K.step_consts(c)
     tab = K._excitation_table(0.0, n_steps, c)
@@ -207,6 +285,7 @@ def tangent_map(x, omega, n_periods, n_steps, c, dynamic, max_iter, tol, jac, pc
     reg_prev = mesh0[4]
     T = np.zeros((15, 10))
     Ts = np.zeros((15, 10))
+    Tm = np.zeros((15, 10))
     J = np.zeros((5, 10))
     J2 = np.zeros((5, 10))
     Mn = np.zeros((5, 5))
@@ -227,6 +306,7 @@ def tangent_map(x, omega, n_periods, n_steps, c, dynamic, max_iter, tol, jac, pc
     sep = 0.0
     back = 0.0
     splits = 0.0
+    located_n = 0.0
     total = n_periods * n_steps
     dphi = K.TWO_PI / n_steps
     hc = K.step_coeffs(dphi / omega, k)
@@ -239,9 +319,27 @@ def tangent_map(x, omega, n_periods, n_steps, c, dynamic, max_iter, tol, jac, pc
         ok, s1, F, region, delta, bd, sp, cp = K.newmark_try_t(
             s, g, tab[m, 0], tab[m, 1], tab[m, 2], omega, hc, k, dynamic, max_iter, tol
         )
-        if ok:
+        located = False
+        if ok and corrected == 2 and region != reg_prev:
+            # split the step at the located contact change: the part before it on the old branch
+            side = K.crossing_side_t(reg_prev, region)
+            a1 = (s1[10], s1[11], s1[12], s1[13], s1[14])
+            located, th, sm, wm, Fm, dm, bdm, spm, cpm = K.crossing_t(
+                s, a1, reg_prev, side, d_prev - side * bd_prev, dphi * j, dphi, omega, omega, c, k, dynamic, max_iter,
+                tol,
+            )  # fmt: skip
+            if located:
+                located, s2, F, region, delta, bd, sp, cp = _located_tangent(
+                    T, J, J2, Mn, R, Tm, s, sm, wm, a1, th, reg_prev, side, dphi * j, dphi, omega, tab[m, 0],
+                    tab[m, 1], tab[m, 2], c, k, dynamic, max_iter, tol,
+                )  # fmt: skip
+                if located:
+                    s1 = s2
+                    g = K.guess_t(s, s1, True)
+                    located_n += 1.0
+        if ok and not located:
             theta = -1.0
-            if corrected != 0 and region != reg_prev and region * reg_prev == 0:
+            if corrected == 1 and region != reg_prev and region * reg_prev == 0:
                 sg = float(region + reg_prev)  # the boundary crossed: +1 drive, -1 back side
                 g0 = d_prev - sg * bd_prev
                 g1 = delta - sg * bd
@@ -251,7 +349,7 @@ def tangent_map(x, omega, n_periods, n_steps, c, dynamic, max_iter, tol, jac, pc
                 T, J, s1, tab[m, 0], tab[m, 1], tab[m, 2], omega, hc, k, dynamic, region, Mn, R, reg_prev, theta, J2
             )
             g = K.guess_t(s, s1, dynamic == 0)
-        else:
+        elif not ok:
             # the step again in 2, 4, ... sub-steps, as kernels.split_step_t does, with tangents
             phi_a = dphi * j
             good = False
@@ -324,6 +422,7 @@ def tangent_map(x, omega, n_periods, n_steps, c, dynamic, max_iter, tol, jac, pc
     info[INFO_SEP] = sep / total
     info[INFO_SPLITS] = splits
     info[INFO_BACK] = back / total
+    info[INFO_LOCATED] = located_n
     return status
 
 

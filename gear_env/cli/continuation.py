@@ -30,7 +30,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--omega-max", type=float, default=3.0, help="highest omega (default 3.0)")
     p.add_argument("--json", metavar="PATH", help="write branches and bifurcations as JSON")
     p.add_argument("--plot", metavar="PATH", help="write the frequency-response figure (PNG)")
-    p.add_argument("--max-period", type=int, default=16, help="switch at period doubling up to this period (16)")
+    p.add_argument(
+        "--max-period",
+        type=int,
+        default=8,
+        help="follow a period-doubling cascade up to orbits of this period (8); a period doubling beyond it is "
+        "reported as a note, and the run still exits 0",
+    )
     p.add_argument("--max-switches", type=int, default=8, help="at most this many branch switches per model (8)")
     p.add_argument("--tol", type=float, default=1e-9, help="Newton tolerance on |P^N(x) - x| (1e-9)")
     p.add_argument("--ds-max", type=float, default=0.04, help="largest arclength step (0.04)")
@@ -123,6 +129,8 @@ def _run(args: argparse.Namespace) -> int:
         for bp in r.bifurcations:
             mus = ", ".join(f"{complex(x):.3f}" for x in bp.multipliers)
             print(f"  omega = {bp.omega:.5f}  {bp.type:16s} branch {bp.branch} (period {bp.period}), mu = {mus}")
+        for note in r.notes:
+            print(f"  note: {note}")
         for msg in r.messages:
             print(f"gear-env continuation: {m}: {msg}", file=sys.stderr)
     sweeps = None
@@ -142,12 +150,14 @@ def _run(args: argparse.Namespace) -> int:
         if len(models) == 1:
             out = dict(results[models[0]])
         else:  # one list of branches; "branch" indexes it, "model" says whose
-            out = {"model": "both", "branches": [], "bifurcations": [], "messages": [], "complete": complete}
+            out = {"model": "both", "branches": [], "bifurcations": [], "messages": [], "notes": []}
+            out["complete"] = complete
             for m in models:
                 off = len(out["branches"])
                 out["branches"] += [dict(b, model=m) for b in results[m]["branches"]]
                 out["bifurcations"] += [dict(b, model=m, branch=b["branch"] + off) for b in results[m]["bifurcations"]]
                 out["messages"] += [f"{m}: {x}" for x in results[m]["messages"]]
+                out["notes"] += [f"{m}: {x}" for x in results[m]["notes"]]
                 out["models"] = models
         out["omega_range"] = [args.omega_min, args.omega_max]
         out["params"] = params.to_dict()

@@ -7,6 +7,8 @@ function (every step helper is inlined); see :func:`integrate_stats_tab` for why
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .jit import kernel, kernel_inline, readonly, runtime_int, runtime_true
@@ -45,8 +47,19 @@ from .layout import (
     WORK_SIZE,
 )
 from .mesh import eom_residual_t, excitation, force_direction_t, force_t, friction_t, mesh_t, psi_t, step_consts
-from .newmark import _diverged_t, guess_t, load_t, newmark_try_t, omega_step_t, split_step_t, step_coeffs, store_t
-from .stats import _acc_init, _acc_step, _acc_store, _stats_init
+from .newmark import (
+    _diverged_t,
+    crossing_side_t,
+    crossing_t,
+    guess_t,
+    load_t,
+    newmark_try_t,
+    omega_step_t,
+    split_step_t,
+    step_coeffs,
+    store_t,
+)
+from .stats import _acc_init, _acc_step, _acc_store, _stats_init, _stats_merge
 
 
 @kernel
@@ -459,3 +472,186 @@ def _integrate_stats_batch(
         elapsed[j] = s
         rs[RS_J] = -1.0
     return OK
+
+
+# ---- contact changes located, and the error-controlled driver (issue 24) ------------------------
+MAX_CROSSINGS = 4
+"""Contact changes located per step at most (:func:`located_step_t`); more stay inside the step."""
+
+
+@kernel_inline
+def located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dphi, w_a, w_b, ce, se, kk, c, k,
+                   dynamic, max_iter, tol):  # fmt: skip
+    """A Newmark step from s (contact region ``reg0``, Delta ``d0``, B_d ``bd0`` there) whose
+    unlocated result (s1, F, region, delta, bd, sp, cp) ends in another region, taken again split at
+    its contact changes (``newmark.crossing_t``; up to :data:`MAX_CROSSINGS`): each part before a
+    crossing with the force on its branch, the rest from the crossing. ``ce, se, kk``: the
+    excitation at the end of the step. Returns (state, F, region, Delta, B_d, sin psi, cos psi,
+    natural time of the step, crossings located); the unlocated result if no crossing is found."""
+    h_sum = 0.0
+    n = 0
+    sa = s
+    ra = reg0
+    ga = d0
+    gb = bd0
+    pa = phi_a
+    dp = dphi
+    wa = w_a
+    while region != ra and n < MAX_CROSSINGS:
+        side = crossing_side_t(ra, region)
+        a1 = (s1[10], s1[11], s1[12], s1[13], s1[14])
+        located, th, sm, wm, _Fm, dm, bdm, _spm, _cpm = crossing_t(
+            sa, a1, ra, side, ga - side * gb, pa, dp, wa, w_b, c, k, dynamic, max_iter, tol
+        )
+        if not located:
+            break
+        hc2 = step_coeffs(2.0 * (1.0 - th) * dp / (wm + w_b), k)
+        ok2, s2, F2, region2, delta2, bd2, sp2, cp2 = newmark_try_t(sm, a1, ce, se, kk, w_b, hc2, k, dynamic,
+                                                                    max_iter, tol)  # fmt: skip
+        if not ok2:
+            break
+        h_sum += 2.0 * th * dp / (wa + wm)
+        n += 1
+        ra = side if ra == 0 else 0  # the region entered at the crossing
+        sa, ga, gb, pa, dp, wa = sm, dm, bdm, pa + th * dp, (1.0 - th) * dp, wm
+        s1, F, region, delta, bd, sp, cp = s2, F2, region2, delta2, bd2, sp2, cp2
+    return s1, F, region, delta, bd, sp, cp, h_sum + 2.0 * dp / (wa + w_b), n
+
+
+@kernel
+def integrate_located(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats):
+    """:func:`integrate_stats` (same arguments and results) with every contact change located and
+    the step split there (:func:`located_step_t`), so that no contact change lies inside a step: the
+    Poincare map is then smooth in the state and omega, and its error has the expansion in h^2,
+    h^4, ... of a smooth problem (what :func:`integrate_tol` extrapolates). ``stats[ST_SPLITS]``
+    counts the steps split at a contact change (and any split by the Newton fallback)."""
+    k = step_consts(c)
+    total = n_periods * n_steps
+    dphi = TWO_PI / n_steps
+    ww = (w1 * w1 - w0 * w0) / total
+    work = np.zeros(WORK_SIZE)
+    if reset_stats:
+        _stats_init(stats)
+    F_prev, reg_prev, d_prev, bd_prev = start_step(x, a, phi0, w0, c, dynamic, work)
+    s = load_t(x, a)
+    g = (a[0], a[1], a[2], a[3], a[4])
+    tr_prev = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
+    acc = _acc_init()
+    el = 0.0
+    wa = w0
+    hc = step_coeffs(dphi / w0, k)
+    tab = _excitation_table(phi0, n_steps, c)
+    for j in range(total):
+        wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
+        m = (j + 1) % n_steps
+        ce, se, kk = tab[m, 0], tab[m, 1], tab[m, 2]
+        ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(s, g, ce, se, kk, wb, hc, k, dynamic, max_iter, tol)
+        split = 0.0
+        if not ok:
+            st, s1, F, region, delta, bd, sp, cp, _sp = split_step_t(s, phi0 + dphi * j, dphi, wa, wb, c, k, dynamic,
+                                                                    max_iter, tol)  # fmt: skip
+            if st != OK:
+                store_t(s, x, a)
+                _acc_store(acc, stats, c, dynamic)
+                return st, j // n_steps, el
+            split = 1.0
+        h = hc[0]
+        if region != reg_prev:
+            s1, F, region, delta, bd, sp, cp, h, nloc = located_step_t(
+                s, s1, F, region, delta, bd, sp, cp, reg_prev, d_prev, bd_prev, phi0 + dphi * j, dphi, wa, wb, ce,
+                se, kk, c, k, dynamic, max_iter, tol,
+            )  # fmt: skip
+            if nloc > 0:
+                split = 1.0
+        el += h
+        g = guess_t(s, s1, dynamic == 0 or split != 0.0)
+        s = s1
+        if _diverged_t(s):
+            store_t(s, x, a)
+            _acc_store(acc, stats, c, dynamic)
+            return DIVERGED, j // n_steps, el
+        acc, tr_prev = _acc_step(acc, h, s, F, region, delta, bd, sp, split, F_prev, reg_prev, tr_prev)
+        F_prev = F
+        reg_prev = region
+        d_prev = delta
+        bd_prev = bd
+        if m == 0:
+            _poincare_store_t(poincare, (j + 1) // n_steps - 1, s, F, delta, bd, sp, cp, c, dynamic)
+        wa = wb
+    store_t(s, x, a)
+    _acc_store(acc, stats, c, dynamic)
+    return OK, n_periods, el
+
+
+TOL_N_MIN = 8
+"""Fewest steps per mesh period of the coarse run of :func:`integrate_tol`."""
+TOL_N_MAX = 8192
+"""Most steps per mesh period of the coarse run of :func:`integrate_tol`."""
+TOL_SAFETY = 0.5
+""":func:`integrate_tol` aims the next period's estimate at TOL_SAFETY * err_tol."""
+
+
+@kernel
+def integrate_tol(x, a, w0, w1, n_periods, n_start, c, dynamic, poincare, stats, max_iter, tol, err_tol, cost):
+    """Integrate ``n_periods`` mesh periods from mesh phase 0 (omega linear in time from w0 to w1
+    over the interval) with the error per mesh period controlled: ``err_tol`` (b0 units; the 10
+    states, velocities per unit natural time).
+
+    Every mesh period is integrated twice with contact changes located (:func:`integrate_located`),
+    with N and 2N steps. Their difference estimates the error of the 2N result,
+    err = max|x_2N - x_N| / 3 (the located map's error is c h^2 + O(h^4)); a period with
+    err > err_tol is repeated with more steps. The period's result is the Richardson value
+    (4 x_2N - x_N) / 3, whose error is O(h^4) and in practice far below err (local
+    extrapolation). The next period starts with N scaled by sqrt(TOL_SAFETY err_tol / err).
+    Poincare samples are the extrapolated states at phase 2 pi k (the other columns from the 2N
+    run); ``stats`` those of the 2N runs. ``cost`` (n_periods,) receives the Newmark steps of each
+    period (both runs and repeats). Returns (status, periods done, natural time elapsed, N last).
+    """
+    n = max(TOL_N_MIN, n_start)
+    _stats_init(stats)
+    dw2 = w1 * w1 - w0 * w0
+    x1 = np.empty(NSTATE)
+    x2 = np.empty(NSTATE)
+    a1 = np.empty(NDOF)
+    a2 = np.empty(NDOF)
+    pc1 = np.empty((1, poincare.shape[1]))
+    pc2 = np.empty((1, poincare.shape[1]))
+    st1 = np.empty(stats.shape[0])
+    st2 = np.empty(stats.shape[0])
+    el = 0.0
+    for p in range(n_periods):
+        wa = math.sqrt(w0 * w0 + dw2 * p / n_periods)
+        wb = math.sqrt(w0 * w0 + dw2 * (p + 1.0) / n_periods)
+        spent = 0.0
+        while True:
+            for i in range(NSTATE):
+                x1[i] = x[i]
+                x2[i] = x[i]
+            st, _d, _e = integrate_located(x1, a1, 0.0, wa, wb, 1, n, c, dynamic, pc1, st1, max_iter, tol, True)
+            if st != OK:
+                return st, p, el, n
+            st, _d, el2 = integrate_located(x2, a2, 0.0, wa, wb, 1, 2 * n, c, dynamic, pc2, st2, max_iter, tol, True)
+            if st != OK:
+                return st, p, el, n
+            spent += 3.0 * n
+            err = 0.0
+            for i in range(NSTATE):
+                err = max(err, abs(x2[i] - x1[i]))
+            err /= 3.0
+            if err <= err_tol or n >= TOL_N_MAX:
+                break
+            n = min(TOL_N_MAX, max(2 * n, int(math.ceil(n * math.sqrt(err / (TOL_SAFETY * err_tol))))))
+        for i in range(NSTATE):
+            x[i] = (4.0 * x2[i] - x1[i]) / 3.0
+            poincare[p, i] = x[i]
+        for i in range(NSTATE, poincare.shape[1]):
+            poincare[p, i] = pc2[0, i]
+        for i in range(NDOF):
+            a[i] = a2[i]
+        _stats_merge(stats, st2)
+        el += el2
+        cost[p] = spent
+        grow = math.sqrt(max(err, 1e-300) / (TOL_SAFETY * err_tol))
+        n = int(math.ceil(n * min(2.0, max(0.5, grow))))
+        n = min(TOL_N_MAX, max(TOL_N_MIN, n))
+    return OK, n_periods, el, n

@@ -34,6 +34,7 @@ from .jit import kernel, kernel_inline, runtime_int
 from .layout import BETA, DIVERGENCE_LIMIT, GAMMA, NDOF, NEWTON_FAILED, NSTATE, OK
 from .mesh import (
     backlash,
+    backlash_branch,
     bearing_t,
     deflection_gradient_t,
     deflection_t,
@@ -81,6 +82,51 @@ def corrector_t(p, a0, a1, a2, a3, a4, bh2, gh):
     )
 
 
+@kernel_inline
+def rank_one_solve_t(r0, r1, r2, r3, r4, w0, w1, w2, w3, u0, u1, u2, u3, u4, idd0, idd2):
+    """Newton update d of a step: (D + w u^T) d = -r by the Sherman-Morrison formula, with
+    D = diag(dd0, dd0, dd2, dd2, 1) given by its inverses idd0, idd2 (``step_coeffs``) and w_4 = 1."""
+    y0 = -r0 * idd0
+    y1 = -r1 * idd0
+    y2 = -r2 * idd2
+    y3 = -r3 * idd2
+    y4 = -r4
+    z0 = w0 * idd0
+    z1 = w1 * idd0
+    z2 = w2 * idd2
+    z3 = w3 * idd2
+    fac = (u0 * y0 + u1 * y1 + u2 * y2 + u3 * y3 + u4 * y4) / (1.0 + u0 * z0 + u1 * z1 + u2 * z2 + u3 * z3 + u4)
+    return y0 - fac * z0, y1 - fac * z1, y2 - fac * z2, y3 - fac * z3, y4 - fac
+
+
+@kernel_inline
+def newton_delta_t(a, t, mesh, ce, se, kk, hc, k, friction=True):
+    """The Newton update of a step's end-of-step acceleration: the residual r of the equations of
+    motion at the corrected state t (acceleration iterate a, ``mesh`` = :func:`mesh_t` at t, whose
+    backlash value f and region are used as given) and d = -(dr/da)^-1 r. Returns (d_0..d_4, F)."""
+    h, bh2, gh, hh, h1, idd0, idd2 = hc
+    delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
+    F = force_t(ddelta, f, kk, k)
+    fr = friction_t(ce, se, k) if friction else 0.0  # [friction extension] tilts the force off the LOA
+    w = force_direction_t(sp, cp, fr, k)
+    w0, w1, w2, w3 = w
+    # the residual of the equations of motion at the corrected state t (kernels.mesh)
+    r0, r1, r2, r3, r4 = eom_residual_t(a, t, F, w, k)
+    # Jacobian dr/da = D + w u^T: D = I + gh C + bh2 K (step_coeffs), and u = dF/da = gh dF/dv +
+    # bh2 dF/dq, with dF/dv = dF/dDelta' g and dF/dq = dF/dDelta g + dF/dB_d dB_d/dq (g = dDelta/dq,
+    # force direction and psi frozen within the step; dB_d/dU = 0)
+    dF_ddd, dF_dd, dF_dbd = force_gradient_t(delta, bd, region, kk, k)
+    g0, g1, g2, g3, g4 = deflection_gradient_t(sp, cp)
+    cg = gh * dF_ddd + bh2 * dF_dd
+    cb = bh2 * dF_dbd
+    u0 = cg * g0 + cb * db0
+    u1 = cg * g1 + cb * db1
+    u2 = cg * g2 - cb * db0
+    u3 = cg * g3 - cb * db1
+    u4 = cg * g4
+    return rank_one_solve_t(r0, r1, r2, r3, r4, w0, w1, w2, w3, u0, u1, u2, u3, u4, idd0, idd2) + (F,)
+
+
 NEWTON_MORE = 0  # newton_iter_t: iterate again
 NEWTON_DONE = 1  # newton_iter_t: converged, (t, a) is the new state
 NEWTON_BAD = 2  # newton_iter_t: non-finite update
@@ -124,40 +170,7 @@ def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_o
     h, bh2, gh, hh, h1, idd0, idd2 = hc
     a0, a1, a2, a3, a4 = a
     delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
-    F = force_t(ddelta, f, kk, k)
-    fr = friction_t(ce, se, k) if friction else 0.0  # [friction extension] tilts the force off the LOA
-    w = force_direction_t(sp, cp, fr, k)
-    w0, w1, w2, w3 = w
-    # the residual of the equations of motion at the corrected state t (kernels.mesh)
-    r0, r1, r2, r3, r4 = eom_residual_t(a, t, F, w, k)
-    # Jacobian dr/da = D + w u^T: D = I + gh C + bh2 K (step_coeffs), and u = dF/da = gh dF/dv +
-    # bh2 dF/dq, with dF/dv = dF/dDelta' g and dF/dq = dF/dDelta g + dF/dB_d dB_d/dq (g = dDelta/dq,
-    # force direction and psi frozen within the step; dB_d/dU = 0)
-    dF_ddd, dF_dd, dF_dbd = force_gradient_t(delta, bd, region, kk, k)
-    g0, g1, g2, g3, g4 = deflection_gradient_t(sp, cp)
-    cg = gh * dF_ddd + bh2 * dF_dd
-    cb = bh2 * dF_dbd
-    u0 = cg * g0 + cb * db0
-    u1 = cg * g1 + cb * db1
-    u2 = cg * g2 - cb * db0
-    u3 = cg * g3 - cb * db1
-    u4 = cg * g4
-    # Sherman-Morrison: (D + w u^T) d = -r, D = diag(dd0, dd0, dd2, dd2, 1)
-    y0 = -r0 * idd0
-    y1 = -r1 * idd0
-    y2 = -r2 * idd2
-    y3 = -r3 * idd2
-    y4 = -r4
-    z0 = w0 * idd0
-    z1 = w1 * idd0
-    z2 = w2 * idd2
-    z3 = w3 * idd2
-    fac = (u0 * y0 + u1 * y1 + u2 * y2 + u3 * y3 + u4 * y4) / (1.0 + u0 * z0 + u1 * z1 + u2 * z2 + u3 * z3 + u4)
-    e0 = y0 - fac * z0
-    e1 = y1 - fac * z1
-    e2 = y2 - fac * z2
-    e3 = y3 - fac * z3
-    e4 = y4 - fac
+    e0, e1, e2, e3, e4, F = newton_delta_t(a, t, mesh, ce, se, kk, hc, k, friction)
     a0 += e0
     a1 += e1
     a2 += e2
@@ -218,6 +231,136 @@ def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
         if code == NEWTON_BAD:
             break
     return False, s, fin[0], fin[1], fin[2], fin[3], fin[4], fin[5]
+
+
+@kernel_inline
+def mesh_branch_t(s, ce, se, omega, k, dynamic, region):
+    """:func:`mesh_t` with the backlash force taken on the branch ``region`` whatever Delta is
+    (:func:`backlash_branch`, the one-sided continuation), and ``region`` reported."""
+    delta, ddelta, bd, _f, _reg, sp, cp, db0, db1, dp0, dp1 = mesh_t(s, ce, se, omega, k, dynamic)
+    return delta, ddelta, bd, backlash_branch(delta, bd, region), region, sp, cp, db0, db1, dp0, dp1
+
+
+@kernel_inline
+def newmark_branch_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol, region):
+    """A Newmark step (:func:`newmark_try_t`, same arguments plus ``region``) with the backlash
+    force held on the branch ``region``: the part of a step before a located contact change.
+    Newton iterates until the update is below tol (1 + max|a|); for the constant model the force
+    is then linear and one update is exact. Returns (converged, new state tuple, F, Delta, B_d,
+    sin psi, cos psi); on failure the state returned is the input one."""
+    bh2 = hc[1]
+    gh = hc[2]
+    pv, t, mesh = newton_start_t(s, g, ce, se, w_b, hc, k, dynamic)
+    mesh = mesh_branch_t(t, ce, se, w_b, k, dynamic, region)
+    a0, a1, a2, a3, a4 = g[0], g[1], g[2], g[3], g[4]
+    for _it in range(max_iter):
+        e0, e1, e2, e3, e4, F = newton_delta_t((a0, a1, a2, a3, a4), t, mesh, ce, se, kk, hc, k)
+        a0 += e0
+        a1 += e1
+        a2 += e2
+        a3 += e3
+        a4 += e4
+        dmax = max(abs(e0), abs(e1), abs(e2), abs(e3), abs(e4))
+        if not math.isfinite(dmax):
+            break
+        t = corrector_t(pv, a0, a1, a2, a3, a4, bh2, gh)
+        mesh = mesh_branch_t(t, ce, se, w_b, k, dynamic, region)
+        if dynamic == 0 or dmax <= tol * (1.0 + max(abs(a0), abs(a1), abs(a2), abs(a3), abs(a4))):
+            delta, ddelta, bd, f, _r, sp, cp, _b0, _b1, _p0, _p1 = mesh
+            s1 = (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], a0, a1, a2, a3, a4)
+            return True, s1, force_t(ddelta, f, kk, k), delta, bd, sp, cp
+    return False, s, 0.0, 0.0, 0.0, 0.0, 0.0
+
+
+LOCATE_MAX_ITER = 60
+"""Iterations of the crossing search of :func:`crossing_t` (Illinois; it needs 5-12)."""
+LOCATE_TOL = 1e-13
+"""The crossing search stops when the bracket of the crossing is below this fraction of the step
+or the gap function is below LOCATE_TOL * 1e-2 b0."""
+
+
+@kernel_inline
+def crossing_side_t(reg0, region1):
+    """The contact boundary a step from region ``reg0`` into ``region1`` crosses first: +1 the
+    drive side (gap function Delta - B_d), -1 the back side (Delta + B_d)."""
+    if reg0 == 0:
+        return region1
+    return reg0
+
+
+@kernel_inline
+def branch_part_t(s, g1, theta, reg0, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol):
+    """The first part, theta of its phase increment dphi, of a step from s with the force held on
+    the branch ``reg0`` (omega^2 linear in phase; Newton guess: the accelerations interpolated
+    towards g1). Returns (converged, state, omega at its end, F, Delta, B_d, sin psi, cos psi)."""
+    wt = math.sqrt(w_a * w_a + (w_b * w_b - w_a * w_a) * theta)
+    hc = step_coeffs(2.0 * theta * dphi / (w_a + wt), k)
+    ce, se, kk = excitation(phi_a + theta * dphi, c)
+    gs = (
+        s[10] + theta * (g1[0] - s[10]),
+        s[11] + theta * (g1[1] - s[11]),
+        s[12] + theta * (g1[2] - s[12]),
+        s[13] + theta * (g1[3] - s[13]),
+        s[14] + theta * (g1[4] - s[14]),
+    )
+    ok, sm, F, delta, bd, sp, cp = newmark_branch_try_t(s, gs, ce, se, kk, wt, hc, k, dynamic, max_iter, tol, reg0)
+    return ok, sm, wt, F, delta, bd, sp, cp
+
+
+@kernel
+def crossing_t(s, g1, reg0, side, gap0, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol):
+    """Locate the contact change inside a Newmark step from the state tuple s (contact region
+    ``reg0``, gap function ``gap0`` = Delta - side B_d at s) across the boundary ``side``
+    (:func:`crossing_side_t`).
+
+    The gap function at the end of the first part of the step, theta of its phase increment, with
+    the force held on the branch ``reg0`` (:func:`branch_part_t`), is driven to zero by the
+    Illinois (modified regula falsi) method on theta in [0, 1]. ``g1`` is a guess of the
+    end-of-step accelerations. Returns (located, theta, state at the crossing, omega there, F,
+    Delta, B_d, sin psi, cos psi); located is False if the whole step held on ``reg0`` does not
+    cross (then the step is taken unlocated) or a part's Newton iteration fails.
+    """
+    ok, sb, wb_, Fb, db_, bdb, spb, cpb = branch_part_t(s, g1, 1.0, reg0, phi_a, dphi, w_a, w_b, c, k, dynamic,
+                                                        max_iter, tol)  # fmt: skip
+    gb = db_ - side * bdb
+    if not ok or gap0 == 0.0 or gb * gap0 > 0.0:
+        return False, 1.0, sb, wb_, Fb, db_, bdb, spb, cpb
+    ta = 0.0
+    ga = gap0
+    tb = 1.0
+    scale = 1.0 + abs(db_)
+    tc, sc, wc, Fc, dc, bdc, spc, cpc = tb, sb, wb_, Fb, db_, bdb, spb, cpb
+    for _it in range(LOCATE_MAX_ITER):
+        tc = (ta * gb - tb * ga) / (gb - ga)
+        tc = min(max(tc, min(ta, tb)), max(ta, tb))
+        ok, sc, wc, Fc, dc, bdc, spc, cpc = branch_part_t(s, g1, tc, reg0, phi_a, dphi, w_a, w_b, c, k, dynamic,
+                                                          max_iter, tol)  # fmt: skip
+        if not ok:
+            return False, tc, sc, wc, Fc, dc, bdc, spc, cpc
+        gc = dc - side * bdc
+        if abs(gc) <= 1e-2 * LOCATE_TOL * scale or abs(tb - ta) <= LOCATE_TOL:
+            break
+        if gc * gb < 0.0:
+            ta, ga = tb, gb
+        else:
+            ga *= 0.5
+        tb, gb = tc, gc
+    return True, tc, sc, wc, Fc, dc, bdc, spc, cpc
+
+
+@kernel_inline
+def split_at_t(s, g1, theta, reg0, phi_a, dphi, w_a, w_b, ce, se, kk, c, k, dynamic, max_iter, tol):
+    """A Newmark step from s split at the fraction theta of its phase increment: the first part
+    with the force held on the branch ``reg0`` (:func:`branch_part_t`), the rest from there to the
+    end as a normal step (``ce, se, kk``: the excitation at the end). Returns (converged, state at
+    the split, omega there, state at the end, F, region, Delta, B_d, sin psi, cos psi) at the end."""
+    ok, sm, wm, _F, _d, _bd, _sp, _cp = branch_part_t(s, g1, theta, reg0, phi_a, dphi, w_a, w_b, c, k, dynamic,
+                                                      max_iter, tol)  # fmt: skip
+    if not ok:
+        return False, sm, wm, sm, 0.0, 0, 0.0, 0.0, 0.0, 0.0
+    hc = step_coeffs(2.0 * (1.0 - theta) * dphi / (wm + w_b), k)
+    ok, s2, F, region, delta, bd, sp, cp = newmark_try_t(sm, g1, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol)
+    return ok, sm, wm, s2, F, region, delta, bd, sp, cp
 
 
 DQ_LINEAR = 1e-4

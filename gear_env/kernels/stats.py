@@ -119,3 +119,20 @@ def _acc_store(acc, stats, c, dynamic):
         else:
             stats[ST_PSI_MAX] = max(stats[ST_PSI_MAX], math.asin(sp_max))
             stats[ST_PSI_MIN] = min(stats[ST_PSI_MIN], math.asin(sp_min))
+
+
+_SUMS = (ST_TIME, ST_SEP_TIME, ST_BACK_TIME, ST_BACK_IMPACTS, ST_DRIVE_IMPACTS, ST_F_SUM, ST_F_SQ, ST_TR_SQ, ST_STEPS,
+         ST_SPLITS)  # fmt: skip
+_MAXS = (ST_F_MAX, ST_TR_MAX, ST_U_MAX, ST_D_MAX, ST_BD_MAX, ST_PSI_MAX)
+_MINS = (ST_F_MIN, ST_U_MIN, ST_D_MIN, ST_BD_MIN, ST_PSI_MIN)
+
+
+@kernel
+def _stats_merge(dst, src):
+    """Merge the interval statistics ``src`` of a later interval into ``dst`` (sums add, extrema)."""
+    for i in _SUMS:
+        dst[i] += src[i]
+    for i in _MAXS:
+        dst[i] = max(dst[i], src[i])
+    for i in _MINS:
+        dst[i] = min(dst[i], src[i])
