@@ -44,7 +44,7 @@ LOG_H = np.array(
      0.657, 0.794, 0.921, 1.041, 1.155, 1.263, 1.366, 1.466, 1.563, 1.660]
 )  # fmt: skip
 """log of the steady force RMS ratio per unit ``q`` at ``H_OMEGAS`` (:func:`force_shape`, e_m1 x0.25, load x1.5)."""
-EDGE_LOGQ = np.array([-1.37, -1.295, -1.25, -1.13, -0.95, -0.84, -0.64, -0.5, -0.25, 0.0, 0.355, 0.84])
+EDGE_LOGQ = np.array([-1.368, -1.298, -1.235, -1.133, -0.941, -0.842, -0.638, -0.498, -0.25, 0.0, 0.354, 0.839])
 EDGE_OMEGA = np.round(np.arange(1.75, 1.1499, -0.05), 3)
 """The "sensor map": hold ``EDGE_OMEGA[i]`` when the demand is above it and the sensed log q (:func:`log_q`)
 lies in [EDGE_LOGQ[i-1], EDGE_LOGQ[i]): the speeds the oracle held (its maps are on a 0.05 grid) on the clean,
