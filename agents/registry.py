@@ -12,7 +12,12 @@ Specs (case-sensitive):
 ``ramp`` / ``ramp:W[:F]``   slow ramp to the best omega (or W) at fraction F of the max rate (0.25)
 ``hill-climber``            greedy vibration-feedback controller
 ``random[:SEED]``           uniform random actions (seeded; a sanity floor)
+``delayed-oracle:K``        (GearSpeedDemand-v0) fixed-best for K steps, then the oracle that knows the pair
+``identify-follow``         (GearSpeedDemand-v0) sensor-only: identify the pair, follow the demand to its edge
+``sensor-servo``            (GearSpeedDemand-v0) sensor-only memoryless servo on the sensed force level
 ==========================  ===========================================================================
+
+The last three are built from ``DEMAND_SCRIPTS`` (name -> factory, help line; agents/demand_scripts.py).
 
 A trained model is checked against the environment it is evaluated on: a model trained on another
 observation layout raises a clear ``ValueError``.
@@ -40,7 +45,46 @@ NAMES = (
     "ramp:W[:F]",
     "hill-climber",
     "random[:SEED]",
+    "delayed-oracle:K",
+    "identify-follow",
+    "sensor-servo",
 )
+
+
+def _delayed_oracle(arg: str | None, config: Any) -> Any:
+    from .demand_scripts import DelayedOracle
+
+    if arg is None or not arg.strip().lstrip("-").isdigit():
+        raise ValueError(
+            f"policy spec 'delayed-oracle:{arg or ''}': K must be an integer number of steps (delayed-oracle:10)"
+        )
+    return DelayedOracle(config, int(arg))
+
+
+def _no_arg(cls_name: str) -> Any:
+    def make(arg: str | None, config: Any) -> Any:
+        from . import demand_scripts
+
+        cls = getattr(demand_scripts, cls_name)
+        if arg is not None:
+            raise ValueError(f"policy spec {cls.name!r} takes no argument, got {cls.name}:{arg}")
+        return cls(config)
+
+    return make
+
+
+DEMAND_SCRIPTS: dict[str, tuple[Any, str]] = {
+    "delayed-oracle": (
+        _delayed_oracle,
+        "fixed-best for K steps, then the oracle that knows the pair (delayed-oracle:K)",
+    ),
+    "identify-follow": (
+        _no_arg("IdentifyFollow"),
+        "identify the pair from the sensed force, follow the demand to its edge",
+    ),
+    "sensor-servo": (_no_arg("SensorServo"), "memoryless servo: step towards the edge level of the sensed force"),
+}
+"""The baselines of GearSpeedDemand-v0 (agents/demand_scripts.py): spec name -> (factory(arg, config), help line)."""
 
 
 def pretrained_dir(env_id: str = "GearSpeed-v0") -> Path:
@@ -111,6 +155,11 @@ def resolve_policy(spec: str, config: Any = None, env_id: str | None = None) -> 
     from .oracle import OraclePolicy, best_constant_omega
 
     scenario = _has_scenario(config)
+    head, sep, arg = s.partition(":")
+    if head in DEMAND_SCRIPTS:
+        if not scenario or getattr(config, "demand", None) is None:
+            raise ValueError(f"policy {head!r} needs a task with a demand and a plant family (GearSpeedDemand-v0)")
+        return DEMAND_SCRIPTS[head][0](arg if sep else None, config)
     if s == "oracle":
         if scenario:
             from .episode_oracle import EpisodeOracle

@@ -24,25 +24,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-
-def iqm(x: np.ndarray) -> float:
-    """Interquartile mean: the mean of the middle 50 % of the values (rliable's IQM)."""
-    a = np.sort(np.asarray(x, float).ravel())
-    n = len(a)
-    lo, hi = int(np.floor(0.25 * n)), int(np.ceil(0.75 * n))
-    return float(a[lo:hi].mean()) if hi > lo else float(a.mean())
-
-
-def iqm_ci(scores: np.ndarray, reps: int = 2000, seed: int = 0) -> tuple[float, float, float]:
-    """IQM of a (runs, episodes) score matrix and its 95 % stratified-bootstrap interval."""
-    s = np.asarray(scores, float)
-    rng = np.random.default_rng(seed)
-    stats = []
-    for _ in range(reps):
-        runs = s[rng.integers(0, s.shape[0], s.shape[0])]
-        eps = np.take_along_axis(runs, rng.integers(0, s.shape[1], runs.shape), axis=1)
-        stats.append(iqm(eps))
-    return iqm(s), float(np.percentile(stats, 2.5)), float(np.percentile(stats, 97.5))
+from agents.protocol import iqm, iqm_ci  # noqa: F401  (re-exported: demand_gap and pretrained_seeds use them)
 
 
 def parse_settings(items: Sequence[str]) -> dict:

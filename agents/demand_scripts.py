@@ -1,0 +1,191 @@
+"""Baselines of ``GearSpeedDemand-v0`` that bound what a policy can get: the delayed oracle and two
+sensor-only scripts.
+
+The physics behind the scripts (docs/ENVIRONMENT.md, "Evaluation protocol"): below contact loss the mesh
+force is linear in the transmission error, so the sensed RMS of the dynamic mesh force over the static one,
+``rho = expm1(observation["force_rms"])``, factorises into the pair and the speed,
+
+    log rho = log q + log h(omega),     q = (e_m1 factor) / (load factor x duty level),
+
+with one shape ``h`` for the whole family (``LOG_H``: to +-0.03 across the family, measured by
+:func:`force_shape`). One clean step at any speed therefore senses ``log q`` (:func:`log_q`), and with it the
+speed the oracle would hold below a high demand (``EDGE_LOGQ`` -> ``EDGE_OMEGA``, the "sensor map").
+
+* :class:`SensorServo` (``sensor-servo``, memoryless): each step, half-way from omega to ``min(demand,
+  hold(log q sensed in that step))``, never below the floor; on trouble (contact loss, impacts, a
+  periodicity defect) it backs off at the full rate.
+* :class:`IdentifyFollow` (``identify-follow``): the same map, but ``log q`` is identified on clean steps and
+  kept (updated only on steps that barely moved, since a ramp biases the sensed level; a troubled step
+  raises it by ``penalty``), and it goes to its target at the full rate.
+* :class:`DelayedOracle` (``delayed-oracle:K``): fixed-best for the first K steps, then the oracle that knows
+  the pair (the information bound of a policy that needs K steps to identify the plant).
+
+Calibration uses only data outside the validation and test seeds of :mod:`agents.protocol`: ``LOG_H`` is the
+steady force shape of one pair of the family (no episode), the map's boundaries come from the oracle's holds on
+the training episode seeds 0-119 (``python benchmarks/demand_protocol.py --calibrate`` prints them), and the
+gains were compared on training seeds 0-39 (docs/RESULTS.md, "Demand: protocol tables").
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .baselines import OBS_BACK_IMPACTS, OBS_CONTACT, OBS_DEFECT, OBS_DEMAND, OBS_DRIVE_IMPACTS, ScriptedPolicy
+
+OBS_DOMEGA = 1  # change of omega in the step / max_domega
+OBS_FORCE_RMS = 2  # log1p(RMS of the dynamic mesh force / F_s)
+
+H_OMEGAS = np.round(np.arange(0.9, 2.0001, 0.05), 3)
+"""Speeds of the force shape table ``LOG_H``."""
+LOG_H = np.array(
+    [-0.109, 0.227, -0.002, -0.404, -0.789, -0.976, -0.824, -0.540, -0.270, -0.035, 0.168, 0.347, 0.509,
+     0.657, 0.794, 0.921, 1.041, 1.155, 1.263, 1.366, 1.466, 1.563, 1.660]
+)  # fmt: skip
+"""log of the steady force RMS ratio per unit ``q`` at ``H_OMEGAS`` (:func:`force_shape`, e_m1 x0.25, load x1.5)."""
+EDGE_LOGQ = np.array([-1.368, -1.298, -1.235, -1.133, -0.941, -0.842, -0.638, -0.498, -0.25, 0.0, 0.354, 0.839])
+EDGE_OMEGA = np.round(np.arange(1.75, 1.1499, -0.05), 3)
+"""The "sensor map": hold ``EDGE_OMEGA[i]`` when the demand is above it and the sensed log q (:func:`log_q`)
+lies in [EDGE_LOGQ[i-1], EDGE_LOGQ[i]): the speeds the oracle held (its maps are on a 0.05 grid) on the clean,
+steady steps where the demand was above its hold, classified by the log q sensed there, over the training
+episodes 0-119 (boundaries between the 95th and 5th percentiles of neighbouring holds)."""
+FLOOR = 1.15
+"""Lowest speed the scripts hold (the minimum of h: below it lies the contact-loss band of the slow speeds)."""
+TROUBLE_DEFECT = float(np.log1p(0.5))
+"""Periodicity-defect observation above which a step counts as troubled (half the defect scale)."""
+
+
+def force_shape(config: Any = None, e_m1: float = 0.25, load: float = 1.5, steps: int = 4) -> np.ndarray:
+    """log h at ``H_OMEGAS``: log(expm1(force_rms) / q) after holding each omega ``steps`` steps on the pair
+    (e_m1 x``e_m1``, load x``load``) of the task's family, no duty cycle (what ``LOG_H`` stores)."""
+    from gear_env.env import GearSpeedEnv
+
+    from .envs import GEAR_ENV_ID, make_config
+
+    cfg = make_config(GEAR_ENV_ID, config).replace(
+        plant_family={"load": (load, load), "e_m1": (e_m1, e_m1)}, duty_cycle=None
+    )
+    env = GearSpeedEnv(cfg)
+    out = []
+    for w in H_OMEGAS:
+        obs, _ = env.reset(seed=0, options={"omega": float(w)})
+        a = np.array([2.0 * (w - cfg.omega_min) / (cfg.omega_max - cfg.omega_min) - 1.0], np.float32)
+        for _ in range(steps):
+            obs, *_ = env.step(a)
+        out.append(np.log(np.expm1(obs[OBS_FORCE_RMS]) / (e_m1 / load)))
+    return np.array(out)
+
+
+def _demand(policy: ScriptedPolicy, obs: np.ndarray) -> np.ndarray:
+    return policy.omega_min + 0.5 * (obs[:, OBS_DEMAND] + 1.0) * (policy.omega_max - policy.omega_min)
+
+
+def _trouble(obs: np.ndarray) -> np.ndarray:
+    from gear_env.env_terms import TROUBLE_CONTACT
+
+    impacts = obs[:, OBS_DRIVE_IMPACTS] + obs[:, OBS_BACK_IMPACTS]
+    return (obs[:, OBS_CONTACT] > TROUBLE_CONTACT) | (impacts > 0) | (obs[:, OBS_DEFECT] > TROUBLE_DEFECT)
+
+
+def _level(obs: np.ndarray) -> np.ndarray:
+    """log rho: log of the sensed force RMS ratio (floored: a silent sensor reads as a very precise pair)."""
+    return np.log(np.maximum(np.expm1(obs[:, OBS_FORCE_RMS]), 1e-6))
+
+
+def _need_demand(policy: ScriptedPolicy) -> None:
+    if not policy.has_demand:
+        raise ValueError(f"policy {policy.name!r} follows a demand: use it on GearSpeedDemand-v0 (demand='random')")
+
+
+def log_q(omega: np.ndarray, obs: np.ndarray, max_domega: float) -> np.ndarray:
+    """The pair's log q sensed in one step: log rho - log h at the step's mean speed (NaN outside the table)."""
+    w = omega - 0.5 * obs[:, OBS_DOMEGA] * max_domega
+    known = (w >= H_OMEGAS[0]) & (w <= H_OMEGAS[-1])
+    return np.where(known, _level(obs) - np.interp(w, H_OMEGAS, LOG_H), np.nan)
+
+
+class SensorServo(ScriptedPolicy):
+    """Memoryless: each step the hold speed of the log q sensed in that step (``edge``), capped by the demand;
+    full-rate back-off on trouble (module docstring)."""
+
+    name = "sensor-servo"
+
+    def __init__(self, config: Any = None, shift: float = 0.0, floor: float = FLOOR, gain: float = 0.5):
+        super().__init__(config)
+        _need_demand(self)
+        self.shift, self.floor, self.gain = float(shift), float(floor), float(gain)
+
+    def edge(self, logq: np.ndarray) -> np.ndarray:
+        """Hold speed for ``log q`` (``EDGE_OMEGA`` + ``shift``); the floor for an unknown (NaN) q."""
+        e = EDGE_OMEGA[np.searchsorted(EDGE_LOGQ, np.nan_to_num(logq, nan=np.inf), side="right")] + self.shift
+        return np.where(np.isfinite(logq), e, self.floor)
+
+    def _targets(self, omega, obs, state):
+        state["t"] = state["t"] + 1
+        goal = np.minimum(self.edge(log_q(omega, obs, self.max_domega)), _demand(self, obs))
+        target = omega + self.gain * (goal - omega)  # damped: a moving step senses a biased level
+        target = np.where(_trouble(obs), np.minimum(target, omega - self.max_domega), target)
+        return np.maximum(target, self.floor), state
+
+
+class IdentifyFollow(SensorServo):
+    """Identify the pair's log q on clean steps (kept through troubled ones; a troubled step raises it by
+    ``penalty``), follow the demand up to the hold speed of that estimate."""
+
+    name = "identify-follow"
+
+    def __init__(
+        self,
+        config: Any = None,
+        shift: float = 0.0,
+        floor: float = FLOOR,
+        penalty: float = 0.1,
+        still: float = 0.3,
+        gain: float = 1.0,
+    ):
+        super().__init__(config, shift, floor, gain)
+        self.penalty, self.still = float(penalty), float(still)
+
+    def initial_state(self, n: int) -> dict[str, np.ndarray]:
+        return {"t": np.zeros(n, np.int64), "logq": np.full(n, np.nan)}
+
+    def _targets(self, omega, obs, state):
+        state["t"] = state["t"] + 1
+        trouble = _trouble(obs)
+        sensed = log_q(omega, obs, self.max_domega)
+        # identify on clean steps, and once known only on steps that barely moved (a ramp biases the level)
+        use = ~trouble & np.isfinite(sensed) & (np.isnan(state["logq"]) | (np.abs(obs[:, OBS_DOMEGA]) <= self.still))
+        logq = np.where(use, sensed, state["logq"])
+        logq = np.where(trouble & (omega >= self.floor), logq + self.penalty, logq)
+        state["logq"] = logq
+        goal = np.minimum(self.edge(logq), _demand(self, obs))
+        target = omega + self.gain * (goal - omega)
+        target = np.where(trouble, np.minimum(target, omega - self.max_domega), target)
+        return np.maximum(target, self.floor), state
+
+
+class DelayedOracle(ScriptedPolicy):
+    """Fixed-best for the first ``k`` steps, then the oracle that knows the pair (``delayed-oracle:K``)."""
+
+    def __init__(self, config: Any = None, k: int = 10):
+        super().__init__(config)
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k <= self.max_steps:
+            raise ValueError(f"delayed-oracle:K needs an integer K in [0, {self.max_steps}] (max_steps), got {k!r}")
+        from .episode_oracle import EpisodeOracle, FixedBest
+
+        self.k = int(k)
+        self.name = f"delayed-oracle:{self.k}"
+        self.fixed, self.oracle = FixedBest(config), EpisodeOracle(config)
+
+    def observe_episode(self, episode: Any) -> None:
+        """Plan both schedules for a new episode (the evaluation calls it at reset)."""
+        self.fixed.observe_episode(episode)
+        self.oracle.observe_episode(episode)
+
+    def _targets(self, omega, obs, state):
+        src = self.fixed if int(state["t"][0]) < self.k else self.oracle
+        return src._targets(omega, obs, state)
+
+
+__all__ = ["DelayedOracle", "IdentifyFollow", "SensorServo", "force_shape"]

@@ -1,0 +1,238 @@
+"""The Demand tables of docs/RESULTS.md under the evaluation protocol (agents/protocol.py), with CIs.
+
+Run:  python benchmarks/demand_protocol.py --set test [--policy SPEC ...] [--runs RUN_DIR ...]
+                                          [--reference pretrained] [--cache DIR] [--markdown PATH] [--json PATH]
+      python benchmarks/demand_protocol.py --set validation --runs runs/demand_s0 runs/demand_s1 ... --select
+      python benchmarks/demand_protocol.py --calibrate --set seeds:0-119   (the scripts' sensor map, training seeds)
+
+Every policy runs the episodes of the named seed set (``validation``: 50 episodes, ``test``: 100; or
+``seeds:A-B``) through ``gear_env.evaluation.run_episode`` (as ``gear-env evaluate`` does); per episode it
+keeps the return, the demand delivered (the throughput term: mean of min(omega, demand) / omega_max summed over
+the steps), the shortfall charge and the vibration cost (chaos + contact + impact + vibration + rate +
+divergence terms). The table gives each policy's mean return with its 95 % bootstrap CI, the share of the
+fixed-best -> oracle gap it closes (CI from resampling episodes), and the paired per-episode difference
+against ``--reference`` (default: the shipped policy) with its CI. ``--runs`` adds training runs (each run's
+``best_model.zip``): per run the same row, and over the runs the IQM of the per-episode gap scores with its
+95 % stratified-bootstrap CI (rliable). ``--select`` prints the run whose mean validation return is best
+(the shipped run's rule). ``--cache DIR`` keeps each (policy, episode) result in DIR/<set>/<policy>.json, so
+baselines are rolled out once (a changed policy needs a fresh cache file: delete it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+ENV_ID = "GearSpeedDemand-v0"
+BASELINES = ("oracle", "fixed-best", "delayed-oracle:10", "identify-follow", "sensor-servo", "pretrained")
+COST_TERMS = ("reward_chaos", "reward_contact", "reward_impact", "reward_vibration", "reward_rate", "reward_divergence")
+
+
+def parse_seed_set(text: str) -> range:
+    """A protocol set name (``validation``, ``test``, ...) or ``seeds:A-B`` (inclusive)."""
+    from agents.protocol import seed_set
+
+    m = re.fullmatch(r"seeds:(\d+)-(\d+)", text)
+    if m:
+        a, b = int(m.group(1)), int(m.group(2))
+        if b < a + 1:
+            raise ValueError(f"--set {text!r}: need B > A (at least 2 episodes)")
+        return range(a, b + 1)
+    return seed_set(text)
+
+
+def episode_rows(policy, cfg, seeds: Sequence[int]) -> list[dict]:
+    """Per episode: seed, return, delivered (throughput term), shortfall (demand term), cost (the rest)."""
+    from gear_env.env import GearSpeedEnv
+    from gear_env.evaluation import run_episode
+
+    env = GearSpeedEnv(cfg)
+    out = []
+    for s in seeds:
+        acc = dict.fromkeys(("reward_throughput", "reward_demand", *COST_TERMS), 0.0)
+
+        def add(info, acc=acc):
+            for k in acc:
+                acc[k] += info[k]
+
+        res = run_episode(env, policy, int(s), on_step=add)
+        out.append(
+            {
+                "seed": int(s),
+                "return": res.ret,
+                "delivered": acc["reward_throughput"],
+                "shortfall": acc["reward_demand"],
+                "cost": sum(acc[k] for k in COST_TERMS),
+                "settled_omega": res.settled_omega,
+            }
+        )
+    return out
+
+
+def calibrate(cfg, seeds: Sequence[int]) -> str:
+    """The sensor map of agents/demand_scripts.py from the oracle's rollouts on ``seeds`` (training seeds): on
+    clean, steady steps where the demand is above the oracle's next speed, the log q sensed there per hold
+    speed (0.05 grid), and the boundary between neighbouring holds (midway between the 95th percentile of the
+    higher hold and the 5th of the lower one)."""
+    from agents.demand_scripts import OBS_DOMEGA, TROUBLE_DEFECT, log_q
+    from agents.registry import resolve_policy
+    from gear_env.env import GearSpeedEnv
+    from gear_env.env_terms import TROUBLE_CONTACT
+
+    env, oracle = GearSpeedEnv(cfg), resolve_policy("oracle", cfg, env_id=ENV_ID)
+    span = cfg.omega_max - cfg.omega_min
+    x, hold = [], []
+    for s in seeds:
+        obs, _ = env.reset(seed=int(s))
+        oracle.observe_episode(env.unwrapped.episode)
+        state, start, t, done = None, np.ones(1, bool), 0, False
+        while not done:
+            a, state = oracle.predict(obs[None], state=state, episode_start=start, deterministic=True)
+            start[:] = False
+            w0 = cfg.omega_min + 0.5 * (obs[0] + 1.0) * span
+            lq = float(log_q(np.array([w0]), obs[None], cfg.max_domega)[0])
+            clean = obs[7] <= TROUBLE_CONTACT and obs[8] + obs[9] <= 0 and obs[5] <= TROUBLE_DEFECT
+            nxt, _, term, trunc, info = env.step(np.asarray(a, np.float32).reshape(1))
+            w1, d = info["omega"], env.unwrapped.episode.demand[t]
+            if t > 8 and clean and abs(obs[OBS_DOMEGA]) < 0.3 and abs(w1 - w0) < 0.02 and d > w1 + 0.03:
+                x.append(lq)
+                hold.append(round(w1 / 0.05) * 0.05)
+            obs, t, done = nxt, t + 1, term or trunc
+    X, H = np.array(x), np.round(np.array(hold), 2)
+    lines = [
+        "| hold | steps | sensed log q: 5 % | median | 95 % | boundary to the next lower hold |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    hs = sorted(set(H.tolist()), reverse=True)
+    for i, h in enumerate(hs):
+        v = X[H == h]
+        b = f"{0.5 * (np.percentile(v, 95) + np.percentile(X[H == hs[i + 1]], 5)):+.3f}" if i + 1 < len(hs) else "-"
+        p5, p50, p95 = np.percentile(v, [5, 50, 95])
+        lines.append(f"| {h:.2f} | {v.size} | {p5:+.2f} | {p50:+.2f} | {p95:+.2f} | {b} |")
+    return "\n".join(lines)
+
+
+def _safe(spec: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", spec).strip("_") or "policy"
+
+
+def rollout(spec: str, cfg, seeds: range, cache: Path | None, label: str) -> list[dict]:
+    """The episode rows of ``spec`` on ``seeds`` (read from / written to the cache when given)."""
+    from agents.registry import resolve_policy
+    from gear_env.io import atomic_write_text
+
+    path = None if cache is None else cache / label / f"{_safe(spec)}.json"
+    if path is not None and path.is_file():
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if data.get("spec") == spec and data.get("seeds") == [seeds.start, seeds.stop]:
+            return data["episodes"]
+    t0 = time.process_time()
+    rows = episode_rows(resolve_policy(spec, cfg, env_id=ENV_ID), cfg, seeds)
+    print(f"  {spec}: {len(rows)} episodes, {time.process_time() - t0:.0f} s CPU", file=sys.stderr, flush=True)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(path, json.dumps({"spec": spec, "seeds": [seeds.start, seeds.stop], "episodes": rows}))
+    return rows
+
+
+def fmt(m: float, lo: float, hi: float, pct: bool = False) -> str:
+    k = 100.0 if pct else 1.0
+    u = " %" if pct else ""
+    return f"{k * m:.2f}{u} [{k * lo:.2f}, {k * hi:.2f}]" if not pct else f"{k * m:.1f}{u} [{k * lo:.1f}, {k * hi:.1f}]"
+
+
+def table(results: dict[str, list[dict]], reference: str | None) -> tuple[str, dict]:
+    """Markdown table (and its numbers) of every policy against fixed-best, the oracle and ``reference``."""
+    from agents.protocol import gap_closed, mean_ci, paired_diff
+
+    R = {k: np.array([e["return"] for e in v]) for k, v in results.items()}
+    F, O = R["fixed-best"], R["oracle"]
+    ref = R.get(reference) if reference else None
+    head = "| policy | return [95 % CI] | gap closed [95 % CI] |"
+    head += f" paired difference vs {reference} [95 % CI] |" if ref is not None else ""
+    head += " delivered | shortfall | cost | settled omega |"
+    lines = [head, "|" + "---|" + "---:|" * (head.count("|") - 2)]
+    nums = {}
+    for name, rows in results.items():
+        x = R[name]
+        m, g = mean_ci(x), gap_closed(x, F, O)
+        line = f"| {name} | {fmt(*m)} | {fmt(*g, pct=True)} |"
+        d = None
+        if ref is not None:
+            d = paired_diff(x, ref) if name != reference else None
+            line += f" {fmt(*d)} |" if d else " - |"
+        col = {k: float(np.mean([e[k] for e in rows])) for k in ("delivered", "shortfall", "cost", "settled_omega")}
+        line += f" {col['delivered']:.2f} | {col['shortfall']:.2f} | {col['cost']:.2f} | {col['settled_omega']:.3f} |"
+        lines.append(line)
+        nums[name] = {"return": m, "gap_closed": g, "paired_vs_reference": d, **col}
+    return "\n".join(lines), nums
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--set", default="test", help="seed set: validation, test or seeds:A-B (default test)")
+    ap.add_argument("--policy", action="append", default=[], help="policy spec (default: the baselines)")
+    ap.add_argument("--runs", nargs="*", default=[], help="training run folders (their best_model.zip)")
+    ap.add_argument("--reference", default="pretrained", help="policy of the paired differences (default pretrained)")
+    ap.add_argument("--select", action="store_true", help="print the run with the best mean return on this set")
+    ap.add_argument("--cache", metavar="DIR", help="keep per-policy episode results here")
+    ap.add_argument(
+        "--calibrate", action="store_true", help="print the scripts' sensor map from the oracle on --set (train:0-119)"
+    )
+    ap.add_argument("--markdown", metavar="PATH")
+    ap.add_argument("--json", metavar="PATH")
+    args = ap.parse_args(argv)
+
+    from agents.protocol import gap_scores, iqm_ci
+    from gear_env.env_config import task_config
+    from gear_env.io import atomic_write_text
+
+    if args.calibrate:
+        print(calibrate(task_config(ENV_ID), parse_seed_set(args.set)))
+        return 0
+    seeds = parse_seed_set(args.set)
+    label = args.set.replace(":", "_")
+    cfg = task_config(ENV_ID)
+    cache = Path(args.cache) if args.cache else None
+    specs = list(dict.fromkeys(["oracle", "fixed-best", *(args.policy or BASELINES[2:])]))
+    runs = [str(Path(r) / "best_model.zip") for r in args.runs]
+    t0 = time.perf_counter()
+    print(f"{ENV_ID}: {len(specs)} policies + {len(runs)} runs on {args.set} seeds {seeds.start}-{seeds.stop - 1}")
+    results = {s: rollout(s, cfg, seeds, cache, label) for s in specs + runs}
+    ref = args.reference if args.reference in results else None
+    md, nums = table(results, ref)
+    out: dict = {"set": args.set, "seeds": [seeds.start, seeds.stop - 1], "policies": nums}
+    if runs:
+        F = [e["return"] for e in results["fixed-best"]]
+        O = [e["return"] for e in results["oracle"]]
+        mat = np.array([[e["return"] for e in results[r]] for r in runs])
+        m, lo, hi = iqm_ci(gap_scores(mat, F, O))
+        md += (
+            f"\n\n{len(runs)} runs x {len(seeds)} episodes: IQM of the per-episode gap scores {100 * m:.1f} %, "
+            f"95 % stratified-bootstrap CI [{100 * lo:.1f}, {100 * hi:.1f}]; mean gap closed per run: "
+            + ", ".join(f"{100 * nums[r]['gap_closed'][0]:.1f} %" for r in runs)
+        )
+        out["runs_iqm_gap"] = [m, lo, hi]
+        if args.select:
+            best = max(runs, key=lambda r: nums[r]["return"][0])
+            md += f"\n\nselected (best mean return on {args.set}): {best}"
+            out["selected"] = best
+    md += f"\n\n{len(seeds)} episodes ({args.set}: seeds {seeds.start}-{seeds.stop - 1})"
+    print(md)
+    print(f"done in {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+    if args.markdown:
+        atomic_write_text(args.markdown, md + "\n")
+    if args.json:
+        atomic_write_text(args.json, json.dumps(out, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
