@@ -141,13 +141,44 @@ def _seed(text: str, spec: str) -> int:
     return v
 
 
-def resolve_policy(spec: str, config: Any = None, env_id: str | None = None) -> Any:
+def _run_location(spec: str) -> tuple[Path, str] | None:
+    """(run folder, model file inside it) of a trained-policy spec; None for names and scripted specs."""
+    s = spec.strip()
+    if not (os.path.isdir(s) or os.sep in s or s.endswith(".zip")):
+        return None
+    path, model_file = Path(s), "model.zip"
+    if path.suffix == ".zip":  # RUN_DIR/best_model.zip or RUN_DIR/checkpoints/ckpt_<steps>.zip
+        if path.parent.name == "checkpoints":
+            path, model_file = path.parent.parent, f"checkpoints/{path.name}"
+        else:
+            path, model_file = path.parent, path.name
+    return path, model_file
+
+
+def trained_env_id(spec: str) -> str | None:
+    """The task a run-folder spec was trained on (``env_id`` of its ``config.json``); None for every other
+    spec (``pretrained`` is shipped per task, scripted policies fit any task) and for a folder that is not
+    a readable run (resolving it then reports why)."""
+    loc = _run_location(spec) if isinstance(spec, str) else None
+    if loc is None:
+        return None
+    from .runs import RunFolder, RunFolderError
+
+    try:
+        env_id = RunFolder(loc[0]).read_config().get("env_id")
+    except (RunFolderError, OSError, ValueError):
+        return None
+    return env_id if isinstance(env_id, str) else None
+
+
+def resolve_policy(spec: str, config: Any = None, env_id: str | None = None, allow_other_env: bool = False) -> Any:
     """The policy named by ``spec`` for the environment ``config`` (GearSpeedConfig, dict or None).
 
     Returns an object with ``predict(observation, state=None, episode_start=None,
     deterministic=True) -> (actions, state)`` and a ``name``. Raises ``ValueError`` for an unknown
-    spec (listing the valid ones), a missing/corrupt run folder, or a model whose observation or
-    action space does not match the environment."""
+    spec (listing the valid ones), a missing/corrupt run folder, a model whose observation or
+    action space does not match the environment, or a run trained on another task than ``env_id``
+    (its ``config.json`` names it; ``allow_other_env=True`` evaluates it there anyway)."""
     if not isinstance(spec, str) or not spec.strip():
         raise ValueError(f"policy spec must be a non-empty string, got {spec!r}; valid: {', '.join(NAMES)} or RUN_DIR")
     s = spec.strip()
@@ -216,13 +247,16 @@ def resolve_policy(spec: str, config: Any = None, env_id: str | None = None) -> 
         if not (d / "model.zip").is_file():
             raise ValueError(f"the pretrained policy is not installed ({str(d)!r} has no model.zip)")
         return load_trained_policy(d, config if config is not None else _stored_config(d), name="pretrained")
-    if os.path.isdir(s) or os.sep in s or s.endswith(".zip"):
-        path, model_file = Path(s), "model.zip"
-        if path.suffix == ".zip":  # RUN_DIR/best_model.zip or RUN_DIR/checkpoints/ckpt_<steps>.zip
-            if path.parent.name == "checkpoints":
-                path, model_file = path.parent.parent, f"checkpoints/{path.name}"
-            else:
-                path, model_file = path.parent, path.name
+    loc = _run_location(s)
+    if loc is not None:
+        path, model_file = loc
+        trained = trained_env_id(s)
+        if env_id is not None and trained is not None and trained != env_id and not allow_other_env:
+            raise ValueError(
+                f"policy {spec!r} was trained on {trained} ({str(path / 'config.json')!r}), not on {env_id}: its "
+                f"scores there would judge it on another task. Evaluate it with --env {trained}, or pass "
+                "--allow-other-env (allow_other_env=True) to run it on this task anyway"
+            )
         cfg = config if config is not None else _stored_config(path)
         return load_trained_policy(path, cfg, name=Path(s).name or s, model_file=model_file)
     raise ValueError(f"unknown policy {spec!r}; valid: {', '.join(NAMES)}, or a run folder (RUN_DIR)")
@@ -234,4 +268,4 @@ def _stored_config(run_dir: Path) -> Any:
     return RunFolder(run_dir).read_config()["env_config"]
 
 
-__all__ = ["NAMES", "RandomPolicy", "pretrained_dir", "resolve_policy"]
+__all__ = ["NAMES", "RandomPolicy", "pretrained_dir", "resolve_policy", "trained_env_id"]

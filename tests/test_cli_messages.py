@@ -25,7 +25,7 @@ def test_evaluate_says_what_it_does_before_the_work(monkeypatch, capsys):
     monkeypatch.setattr(ev, "evaluate_policies", stop)
     assert cli(["evaluate", "--schedule", "constant:1.2", "--episodes", "3", "--seed", "5"]) == 130
     out = capsys.readouterr().out
-    assert "evaluating 1 policy x 3 episode(s) on GearSpeed-v0, seeds 5..7" in out
+    assert "evaluating 1 policy x 3 episode(s) on GearSpeed-v1, seeds 5..7" in out  # the default task
     assert "rolling out" in out
 
 

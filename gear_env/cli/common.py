@@ -220,3 +220,53 @@ __all__ = [
     "simulate_bytes",
     "sweep_bytes",
 ]
+
+
+# --------------------------------------------------------------------------------------------------
+# which task a command evaluates on
+# --------------------------------------------------------------------------------------------------
+DEFAULT_ENV = "GearSpeed-v1"
+"""The task ``gear-env evaluate/train/report`` run on when neither ``--env`` nor a run folder names one."""
+
+
+def add_env_options(p: argparse.ArgumentParser) -> None:
+    """``--env`` (default: the run folders' own task, else :data:`DEFAULT_ENV`) and ``--allow-other-env``."""
+    from ..tasks import TASK_SETTINGS
+
+    ids = tuple(TASK_SETTINGS)
+    p.add_argument(
+        "--env",
+        default=None,
+        choices=ids,
+        metavar="ID",
+        help=f"task: {', '.join(ids)} (default: the task the --policy run folders were trained on, "
+        f"else {DEFAULT_ENV}; --config settings override its own)",
+    )
+    p.add_argument(
+        "--allow-other-env",
+        action="store_true",
+        help="evaluate a run folder on another task than the one it was trained on (refused by default)",
+    )
+
+
+def choose_env(env: str | None, policy_specs: list[str]) -> str:
+    """The task to evaluate on: ``env`` if given, else the one task the run folders among ``policy_specs``
+    were trained on (their config.json), else :data:`DEFAULT_ENV`. Run folders of different tasks without
+    ``--env`` are refused (ValueError)."""
+    if env is not None:
+        return env
+    try:
+        from agents.registry import trained_env_id  # type: ignore[import-not-found]
+    except ImportError:
+        return DEFAULT_ENV
+    found = {s: e for s in policy_specs if (e := trained_env_id(s.split("=", 1)[-1])) is not None}
+    ids = sorted(set(found.values()))
+    if len(ids) > 1:
+        raise ValueError(
+            "the --policy run folders were trained on different tasks "
+            f"({', '.join(f'{s}: {e}' for s, e in found.items())}); choose one with --env"
+        )
+    if ids:
+        print(f"  --env {ids[0]}: the task the run folder(s) were trained on (config.json)", flush=True)
+        return ids[0]
+    return DEFAULT_ENV

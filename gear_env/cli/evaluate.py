@@ -1,4 +1,5 @@
-"""``gear-env evaluate``: compare speed schedules (and trained policies) on GearSpeed-v0."""
+"""``gear-env evaluate``: compare speed schedules and policies on one task (default: the run folders' own,
+else GearSpeed-v1)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import sys
 import time
 
 from ..tasks import TASK_SETTINGS
-from .common import int_range, writes
+from .common import add_env_options, choose_env, int_range, writes
 
 TASK_IDS = tuple(TASK_SETTINGS)
 
@@ -24,7 +25,7 @@ def _policy_names() -> str:
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "evaluate",
-        help="evaluate speed schedules / policies on GearSpeed-v0",
+        help="evaluate speed schedules / policies on one task (default GearSpeed-v1)",
         description=(
             "Roll out speed schedules (CSV/JSON files of (time in env steps, omega) points, or built-ins "
             "constant:W, ramp:W0:W1:STEPS, piecewise:T0=W0,T1=W1,...) and policies on the same episode seeds; "
@@ -44,13 +45,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--seed", type=int_range(0, 2**32 - 1), default=0, help="seed of the first episode, 0-4294967295 (default 0)"
     )
-    p.add_argument(
-        "--env",
-        default="GearSpeed-v0",
-        choices=TASK_IDS,
-        metavar="ID",
-        help=f"task: {', '.join(TASK_IDS)} (default GearSpeed-v0; --config settings override its own)",
-    )
+    add_env_options(p)
     p.add_argument("--config", metavar="CONFIG.json", help="JSON object of environment settings")
     p.add_argument("--json", metavar="PATH", help="write the results as JSON")
     p.add_argument("--markdown", metavar="PATH", help="write the table as Markdown")
@@ -66,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
     if args.seed + args.episodes - 1 > 2**32 - 1:
         raise ValueError(f"--seed + --episodes - 1 must be <= {2**32 - 1} (episode k uses seed --seed + k)")
     n = len(args.schedule) + len(args.policy)
+    args.env = choose_env(args.env, args.policy)
     print(
         f"evaluating {n} polic{'y' if n == 1 else 'ies'} x {args.episodes} episode(s) on {args.env}, "
         f"seeds {args.seed}..{args.seed + args.episodes - 1} "
@@ -95,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"policy specs need the agents package (agents.registry): {exc}") from None
         for spec in args.policy:
             print(f"  loading policy {spec}", flush=True)
-            policies[spec] = resolve_policy(spec, cfg, env_id=args.env)
+            policies[spec] = resolve_policy(spec, cfg, env_id=args.env, allow_other_env=args.allow_other_env)
     print(f"  rolling out ({time.perf_counter() - t0:.1f} s so far)", flush=True)
     report = evaluate_policies(policies, cfg, episodes=args.episodes, seed=args.seed)
     table = report.to_markdown()

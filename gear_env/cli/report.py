@@ -10,7 +10,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from .common import int_range, writes
+from .common import add_env_options, choose_env, int_range, writes
 
 DESCRIPTION = (
     "Judge policies against the targets of the RL result: return vs the oracle, chaos once settled, settled "
@@ -24,7 +24,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--policy", action="append", required=True, help="policy spec (agents.registry) or NAME=SPEC; repeatable"
     )
-    p.add_argument("--config", help="environment settings JSON (default: GearSpeed-v0 defaults)")
+    add_env_options(p)
+    p.add_argument("--config", help="environment settings JSON overriding the task's own (or a run folder)")
     p.add_argument("--episodes", type=int_range(1, 100_000), default=20, help="episodes per policy (default 20)")
     p.add_argument("--seed", type=int_range(0, 2**32 - 1), default=0, help="seed of the first episode (default 0)")
     p.add_argument("--out", required=True, help="output folder")
@@ -44,18 +45,20 @@ def run(args: argparse.Namespace) -> int:
     from agents.registry import resolve_policy
     from agents.report import compare, plot, to_markdown
 
+    from ..env_config import task_config
     from ..io import atomic_write_text
 
     torch.set_num_threads(1)
-    cfg = load_config_file(args.config) if args.config else {}
+    env_id = choose_env(args.env, args.policy)
+    cfg = task_config(env_id, load_config_file(args.config) if args.config else None)
     pols = {}
     oracle = "oracle"
     for item in args.policy:
         name, spec = item.split("=", 1) if "=" in item else (item, item)
-        pols[name] = resolve_policy(spec, cfg)
+        pols[name] = resolve_policy(spec, cfg, env_id=env_id, allow_other_env=args.allow_other_env)
         if spec == "oracle":
             oracle = name
-    print(f"rolling out {len(pols)} policies x {args.episodes} episodes", flush=True)
+    print(f"rolling out {len(pols)} policies x {args.episodes} episodes on {env_id}", flush=True)
     res = compare(pols, cfg, episodes=args.episodes, seed=args.seed, oracle=oracle)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -14,7 +14,7 @@ from typing import Any
 from ..tasks import TASK_SETTINGS
 from .common import int_range
 
-GEAR_ENV_ID = "GearSpeed-v0"
+GEAR_ENV_ID = "GearSpeed-v1"  # the default task (gear_env.cli.common.DEFAULT_ENV)
 GEAR_ENV_IDS = tuple(TASK_SETTINGS)
 MAX_NUM_ENVS = 1024  # the same bound as agents.ppo.MAX_NUM_ENVS (checked again there)
 MAX_TIMESTEPS = 10**12

@@ -76,3 +76,46 @@ def plot_learned_window(
 
 
 __all__ = ["plot_learned_window"]
+
+
+def plot_task_scores(
+    scores: dict[str, dict[str, tuple[float, float]]],
+    highlight: str = "",
+    reference: str = "oracle",
+    title: str = "",
+):
+    """Return of each policy as a percentage of the reference policy's, one panel per task.
+
+    Args:
+        scores: {task id: {policy label: (mean return in % of the reference, 95 % CI half-width in %)}},
+            policies in the order to draw (top to bottom). Bars and error bars are clipped to [0, 135] %;
+            the number in each label is the unclipped value.
+        highlight: label of the policy drawn in a strong colour (the learned one).
+        reference: the policy the percentages are of (drawn as a line at 100 %).
+        title: figure title.
+
+    Returns:
+        a matplotlib Figure.
+    """
+    n = max(len(scores), 1)
+    rows = max((len(v) for v in scores.values()), default=1)
+    fig = new_figure(4.6 * n + 0.4, 0.42 * rows + 1.5)
+    axes = fig.subplots(1, n, squeeze=False)[0]
+    for ax, (task, pols) in zip(axes, scores.items()):
+        labels = list(pols)
+        y = np.arange(len(labels))[::-1]
+        means = np.array([pols[k][0] for k in labels])
+        halves = np.array([pols[k][1] for k in labels])
+        colors = ["#c0392b" if k == highlight else ("#7f8c8d" if k == reference else "#5d8aa8") for k in labels]
+        xmax = 135.0
+        bars = np.clip(means, 0.0, xmax)
+        err = np.vstack([np.minimum(halves, bars), np.minimum(halves, xmax - bars)])  # kept inside the axes
+        ax.barh(y, bars, xerr=err, color=colors, height=0.65, capsize=2, ecolor="0.3")
+        ax.axvline(100.0, color="k", lw=0.8, ls="--")
+        ax.set_yticks(y, [f"{k}  {m:.1f} %" for k, m in zip(labels, means)], fontsize=8)
+        ax.set_xlim(0.0, xmax)
+        ax.set_xlabel(f"return, % of the {reference}'s (same seeds)")
+        ax.set_title(task, fontsize=10)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return fig
