@@ -2,6 +2,7 @@
 
     python benchmarks/crafted_cases.py            # every case, a table, exit 1 if any did not hold
     python benchmarks/crafted_cases.py --list     # the case names
+    python benchmarks/crafted_cases.py --rss      # peak RSS of the memory cases, each in a fresh process
 
 Each case builds its hostile input from the files the package ships (gear_env/data/pretrained, the
 shipped policies) or from files the package writes (a sweep checkpoint, a results file), in a fresh
@@ -606,6 +607,22 @@ def _c_env_time_limit(value: float) -> Callable[[Path], Outcome]:
     return f
 
 
+def _c_env_no_time_limit(w: Path) -> Outcome:
+    """Gymnasium's documented ``max_episode_steps=-1`` (no TimeLimit wrapper): the env truncates itself."""
+    import gymnasium as gym
+
+    import gear_env  # noqa: F401
+
+    def run() -> None:
+        env = gym.make("GearSpeed-v1", max_episode_steps=-1, max_steps=3, periods_per_step=8, warmup_periods=16)
+        env.reset(seed=0)
+        trunc = [env.step(env.action_space.sample())[3] for _ in range(3)]
+        if trunc != [False, False, True]:
+            raise RuntimeError(f"max_episode_steps=-1: expected truncation at the env's max_steps=3, got {trunc}")
+
+    return api(run)
+
+
 def _c_valid_pretrained(w: Path) -> Outcome:
     return api(load_run(run_copy(w)))
 
@@ -709,7 +726,8 @@ CASES: list[Case] = [
         _c_env_string_action("GearSpeedDemand-v0"),
         ("action",),
     ),  # fmt: skip
-    Case("gym.make(max_episode_steps=-1)", "ValueError", _c_env_time_limit(-1), ("max_episode_steps",)),
+    Case("gym.make(max_episode_steps=-2)", "ValueError", _c_env_time_limit(-2), ("max_episode_steps",)),
+    Case("gym.make(max_episode_steps=-1): no wrapper, the env truncates", "ends", _c_env_no_time_limit, (), "ok"),
     Case("gym.make(max_episode_steps=nan)", "ValueError", _c_env_time_limit(float("nan")), ("max_episode_steps",)),
     Case("shipped pretrained run (earlier release) loads", "loads", _c_valid_pretrained, (), "ok"),
     Case("shipped policies load", "loads", _c_valid_policies, (), "ok"),
@@ -750,8 +768,10 @@ def run_case(case: Case, base: Path) -> tuple[Outcome, bool, str]:
     return out, not why, "; ".join(why)
 
 
-def warm_up() -> None:
-    """Import what the cases use (so the memory peaks measure the cases, not first imports)."""
+def warm_up(load: bool = True) -> None:
+    """Import what the cases use (so the memory peaks measure the cases, not first imports); with
+    ``load``, also load the pretrained run and a results file once (SB3, torch and netCDF import more
+    on their first use)."""
     import gymnasium  # noqa: F401
     import stable_baselines3  # noqa: F401
     import torch  # noqa: F401
@@ -763,9 +783,47 @@ def warm_up() -> None:
     import gear_env.cli  # noqa: F401
     from gear_env.analysis.results import SweepResult
 
+    if not load:
+        return
     load_run(PRETRAINED)()  # SB3 and torch import more on their first load
     with tempfile.TemporaryDirectory() as d:
         SweepResult.load(str(results_file(Path(d))))
+
+
+RSS_CASES = (
+    "shipped pretrained run (earlier release) loads",
+    "model.zip policy.pth bomb (600 MB)",
+    "vecnormalize.npz unused 800 MB member",
+    "vecnormalize obs_mean shape (10**12,)",
+    "sweep checkpoint poincare (10**12, 4, 9)",
+    "policy.json net_arch [16384, 16384]",
+)
+"""Cases whose whole-process memory is measured by ``--rss`` (the first is the baseline: a valid load)."""
+
+
+def _one(name: str) -> int:
+    """Run one case in this (fresh) process and print its outcome and peak RSS (``--one NAME``)."""
+    import resource
+
+    warm_up(load=False)
+    case = next(c for c in CASES if c.name == name)
+    with tempfile.TemporaryDirectory(prefix="crafted-") as base:
+        out = case.run(Path(base))
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(json.dumps({"kind": out.kind, "message": out.message[:200], "maxrss_mib": rss}))
+    return 0
+
+
+def rss_table() -> int:
+    """Each of :data:`RSS_CASES` in a fresh process: peak resident memory (imports included)."""
+    import subprocess
+
+    print("| case | outcome | peak RSS (MiB) |\n|---|---|---:|")
+    for name in RSS_CASES:
+        r = subprocess.run([sys.executable, __file__, "--one", name], capture_output=True, text=True, check=False)
+        d = json.loads(r.stdout.strip().splitlines()[-1])
+        print(f"| {name} | {d['kind']} | {d['maxrss_mib']:.0f} |")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -774,6 +832,10 @@ def main(argv: list[str] | None = None) -> int:
         for c in CASES:
             print(c.name)
         return 0
+    if "--one" in args:
+        return _one(args[args.index("--one") + 1])
+    if "--rss" in args:
+        return rss_table()
     os.environ.setdefault("MPLBACKEND", "Agg")
     warm_up()
     rows = []

@@ -1,7 +1,7 @@
 """gear-env: nonlinear dynamics of a spur gear-bearing pair and a Gymnasium speed-scheduling env."""
 
 from . import _numba_cache  # noqa: F401  (must run before any kernel module is imported)
-from .errors import SimulationDivergedError
+from .errors import FileFormatError, SimulationDivergedError
 from .params import GearParams
 from .simulator import (
     DEFAULT_STEPS_PER_PERIOD,
@@ -22,6 +22,7 @@ __all__ = [
     "GearParams",
     "GearSimulator",
     "IntervalStats",
+    "FileFormatError",
     "SimulationDivergedError",
     "Trajectory",
     "default_initial_state",

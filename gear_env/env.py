@@ -17,12 +17,14 @@ from .env_config import GearSpeedConfig
 from .env_core import INFO_KEYS, REWARD_KEYS, SENSOR_NAMES, TERMS, GearSpeedCore, check_options, check_seed
 
 
-def _check_make_time_limit() -> None:
-    """Refuse ``gym.make(ID, max_episode_steps=...)`` with anything but a positive integer (or None).
+def _check_make_time_limit() -> bool:
+    """Check ``gym.make(ID, max_episode_steps=...)``; True when the value is Gymnasium's ``-1``.
 
-    Gymnasium applies the value only after the env is built (``-1`` silently drops the time limit,
-    so episodes would never be truncated; NaN raises its own TypeError); the value is read from the
-    ``make`` call that is building this env."""
+    Gymnasium applies the value only after the env is built, so it is read from the ``make`` call that is
+    building this env. A positive integer is the time limit; ``-1`` is Gymnasium's documented "no
+    ``TimeLimit`` wrapper" (the env then truncates at its own ``max_steps``, so episodes still end);
+    anything else (0, other negatives, NaN, a bool, a float) is refused with a ValueError here, where
+    Gymnasium would silently drop the limit or raise its own TypeError."""
     import sys
 
     from gymnasium.envs import registration
@@ -30,16 +32,20 @@ def _check_make_time_limit() -> None:
     frame: Any = sys._getframe(1)
     for _ in range(8):
         if frame is None:
-            return
+            return False
         if frame.f_code is registration.make.__code__:
             v = frame.f_locals.get("max_episode_steps")
-            if v is not None and (isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < 1):
+            if v is None:
+                return False
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or (v < 1 and v != -1):
                 raise ValueError(
-                    f"max_episode_steps must be a positive integer (the episode's time limit), got {v!r}; "
-                    "omit it for the task's own episode length"
+                    f"max_episode_steps must be a positive integer (the episode's time limit) or -1 (no TimeLimit "
+                    f"wrapper: the env truncates at its own max_steps), got {v!r}; omit it for the task's own "
+                    "episode length"
                 )
-            return
+            return bool(v == -1)
         frame = frame.f_back
+    return False
 
 
 def check_action(action: Any, n: int | None = None) -> np.ndarray:
@@ -179,7 +185,7 @@ class GearSpeedEnv(gym.Env):
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
 
     def __init__(self, config: GearSpeedConfig | dict | None = None, render_mode: str | None = None, **kwargs: Any):
-        _check_make_time_limit()
+        self._no_time_limit_wrapper = _check_make_time_limit()
         super().__init__()
         self.config = GearSpeedConfig.from_kwargs(config, **kwargs)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -268,7 +274,7 @@ class GearSpeedEnv(gym.Env):
         registered limit is refused (the wrapper would cut first): pass ``max_episode_steps`` instead."""
         self._wrapper_truncates = False
         spec = self.spec
-        if spec is None or spec.id not in gym.registry:
+        if self._no_time_limit_wrapper or spec is None or spec.id not in gym.registry:
             return
         reg = gym.spec(spec.id)
         if reg.max_episode_steps is None:
