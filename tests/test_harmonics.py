@@ -89,7 +89,7 @@ def test_kernel_excitation_evaluates_the_series():
     np.testing.assert_allclose(k16, PAPER_PAIR.mesh_stiffness(x), rtol=0.03)
 
 
-@pytest.mark.parametrize("model, omega", [("dynamic", 1.2), ("constant", 2.8), ("dynamic", 0.45)])
+@pytest.mark.parametrize("model, omega", [("dynamic", 1.2), ("constant", 2.8), ("dynamic", 0.25)])
 def test_series_agree_with_the_independent_reference(model, omega):
     """16 stiffness harmonics of the paper's pair plus a 3-harmonic TE: Newmark against SciPy's
     DOP853 on the reference's own statement of the series (gear_env/reference.py)."""
