@@ -35,78 +35,24 @@ from gear_env.io import atomic_write_text
 from gear_env.linear import natural_frequencies
 from gear_env.reference import reference_poincare
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from geometry_vs_ross import PAIRS, PHASES  # noqa: E402  (the pairs and phases of the ROSS benchmark)
+
 ROOT = Path(__file__).resolve().parents[1]
 
-ROSS_PAIR = dict(
-    module=2e-3,
-    teeth=(62, 62),
-    face_width=0.02,
-    bore=(0.035, 0.035),
-    pressure_angle_deg=20.0,
-    youngs_modulus=206e9,
-    poisson=0.3,
-    addendum_coeff=1.0,
-    tip_clearance_coeff=0.25,
-)
+ROSS_PAIR = PAIRS[0][1]  # ROSS tests/test_gear_element.py (20 deg, 206 GPa, nu 0.3, h_a* 1, c* 0.25: the defaults)
 ROSS_FIRST5 = [396622921.3581085, 396738680.0375346, 396854147.2919756, 396969323.136738, 397084207.5865779]
-# (label, SpurPair keywords, ROSS contact ratio, max, min, mean of the 1000-point waveform [N/m])
-ROSS_PAIRS = [
-    (
-        "paper 55/75",
-        dict(module=2e-3, teeth=(55, 75), face_width=0.0387, bore=(0.04, 0.05)),
-        1.7939883590132288,
-        886563610.3350345,
-        488006619.07114655,
-        791347304.0805657,
-    ),
-    (
-        "20/40 m3",
-        dict(module=3e-3, teeth=(20, 40), face_width=0.025, bore=(0.02, 0.04)),
-        1.6351859635714614,
-        564445694.4634221,
-        314239923.63292164,
-        469071588.6597274,
-    ),
-    (
-        "31/47 m4 25 deg",
-        dict(module=4e-3, teeth=(31, 47), face_width=0.04, bore=(0.05, 0.08), pressure_angle_deg=25.0),
-        1.5039976948757665,
-        1059044180.9121268,
-        592820871.9653096,
-        828303566.5898292,
-    ),
-    (
-        "25/93 m1.5 Al",
-        dict(
-            module=1.5e-3,
-            teeth=(25, 93),
-            face_width=0.012,
-            bore=(0.012, 0.05),
-            youngs_modulus=70e9,
-            poisson=0.33,
-            density=2700.0,
-        ),
-        1.727959352645959,
-        90817600.58296451,
-        49876838.67771769,
-        78638012.49521632,
-    ),
-    (
-        "40/40 m5 c*=0.3",
-        dict(module=5e-3, teeth=(40, 40), face_width=0.05, bore=(0.06, 0.06), tip_clearance_coeff=0.3),
-        1.7135336237677612,
-        1087961453.5890226,
-        601176201.1313995,
-        935323038.937726,
-    ),
+# ROSS's contact ratio, max, min, mean of the 1000-point waveform [N/m] of PAIRS[1:] (the pairs of
+# benchmarks/geometry_vs_ross.py after ROSS's own test pair), in that order
+ROSS_VALUES = [
+    (1.7939883590132288, 886563610.3350345, 488006619.07114655, 791347304.0805657),
+    (1.6351859635714614, 564445694.4634221, 314239923.63292164, 469071588.6597274),
+    (1.5039976948757665, 1059044180.9121268, 592820871.9653096, 828303566.5898292),
+    (1.727959352645959, 90817600.58296451, 49876838.67771769, 78638012.49521632),
+    (1.7135336237677612, 1087961453.5890226, 601176201.1313995, 935323038.937726),
 ]
+ROSS_PAIRS = [(name, kw, *vals) for (name, kw), vals in zip(PAIRS[1:], ROSS_VALUES, strict=True)]
 PAPER_KM0 = 7.74e8  # [N/m], Table 1
-
-
-def _ross_phases() -> np.ndarray:
-    x = np.linspace(0.0, 1.0, 1000)
-    x[-1] = np.nextafter(1.0, 0.0)  # ROSS's last sample: the end of the period (single contact)
-    return x
 
 
 class Page:
@@ -171,7 +117,7 @@ def geometry_rows(page: Page) -> None:
         "1e-4 rel",
         rel(p.hertzian_stiffness, 3555868607.9093266) < 1e-4,
     )
-    k = p.mesh_stiffness(_ross_phases())
+    k = p.mesh_stiffness(PHASES)
     for i, r in enumerate(ROSS_FIRST5):
         page.row(f"k at phase {i}/999 [N/m]", src, inp, f"{r:.6e}", f"{k[i]:.6e}", "1e-6 rel", rel(k[i], r) < 1e-6)
     page.row(
@@ -185,7 +131,7 @@ def geometry_rows(page: Page) -> None:
     )
     for _label, kw, cr, kmax, kmin, kmean in ROSS_PAIRS:
         q = SpurPair(**kw)
-        kq = q.mesh_stiffness(_ross_phases())
+        kq = q.mesh_stiffness(PHASES)
         inp = _describe(kw)
         page.row(
             "contact ratio",
@@ -210,7 +156,7 @@ def geometry_rows(page: Page) -> None:
         )
     t0 = time.perf_counter()
     for _ in range(5):
-        SpurPair(**ROSS_PAIR).mesh_stiffness(_ross_phases())
+        SpurPair(**ROSS_PAIR).mesh_stiffness(PHASES)
     dt = (time.perf_counter() - t0) / 5
     page.row(
         "time of one 1000-point waveform [s]",
@@ -279,6 +225,10 @@ def paper_km0_rows(page: Page) -> None:
         rel(b * 1e3, 36.6) < 0.05,
         "the bores move it: ROSS at 38.7 mm with bores 40/50 mm gives 7.913e8, i.e. 37.85 mm",
     )
+    exact = SpurPair(**{**kw, "face_width": b}, kinematics="line_of_action").mean_mesh_stiffness
+    page.row("mean stiffness, exact path of contact / ROSS's kinematics - 1", "gear_env.geometry (kinematics="
+             "'line_of_action')", "as above", "-", f"{exact / check - 1:+.2%}", "-", None,
+             "information: ROSS moves the contact linearly in pressure angle from the form circle")  # fmt: skip
     k0, kap, _ = SpurPair(**{**kw, "face_width": b}).stiffness_harmonics(4)
     page.row(
         "first stiffness harmonic kappa_1 [-]",
@@ -290,6 +240,19 @@ def paper_km0_rows(page: Page) -> None:
         None,
         "information: the geometry's first harmonic beside the assumed one",
     )
+
+
+def reference_row(page: Page, p: GearParams, model: str, omega: float, transient: int, periods: int, source: str,
+                  extra: str) -> None:  # fmt: skip
+    """A row: the Newmark kernels against the solve_ivp reference from the same state on the attractor."""
+    sim = GearSimulator(p, model, None, omega)
+    sim.advance(transient)
+    start = sim.state
+    st = sim.advance(periods)
+    ref = reference_poincare(omega, model, p, transient=0, periods=periods, initial_state=start)
+    e = float(np.max(np.abs(st.poincare[:, :10] - ref.states)))
+    page.row(f"Poincare states over {periods} mesh periods [b0]", source, f"{model}, omega {omega}{extra}",
+             "DOP853 states", f"max difference {e:.1e}", "1e-3", e < 1e-3)  # fmt: skip
 
 
 def harmonic_rows(page: Page) -> None:
@@ -321,22 +284,8 @@ def harmonic_rows(page: Page) -> None:
     pair = SpurPair(module=2e-3, teeth=(55, 75), face_width=0.03785, bore=(0.04, 0.05))
     p = GearParams.from_pair(pair, 16, J_p=0.041, J_g=0.079, m_p=1.53, m_g=3.01)
     p = p.replace(te_harmonics=((1e-5, 0.0), (3e-6, 0.5), (1e-6, -1.0)))
-    for model, omega in (("dynamic", 1.2), ("constant", 2.8), ("dynamic", 0.45)):
-        sim = GearSimulator(p, model, None, omega)
-        sim.advance(200)
-        start = sim.state
-        st = sim.advance(10)
-        ref = reference_poincare(omega, model, p, transient=0, periods=10, initial_state=start)
-        e = float(np.max(np.abs(st.poincare[:, :10] - ref.states)))
-        page.row(
-            "Poincare states over 10 mesh periods [b0]",
-            "gear_env/reference.py with the series",
-            f"{model}, omega {omega}, 16 + 3 harmonics",
-            "DOP853 states",
-            f"max difference {e:.1e}",
-            "1e-3",
-            e < 1e-3,
-        )
+    for model, omega in (("dynamic", 1.2), ("constant", 2.8), ("dynamic", 0.25)):
+        reference_row(page, p, model, omega, 200, 10, "gear_env/reference.py with the series", ", 16 + 3 harmonics")
     page.row(
         "cost of 16 + 3 harmonics vs one cosine",
         "issue #28 (<= 1.3x)",
@@ -368,22 +317,8 @@ def existing_rows(page: Page) -> None:
         err < 6e-6,
     )
     for model, omega in (("dynamic", 1.2), ("dynamic", 2.8), ("constant", 0.45)):
-        p = GearParams()
-        sim = GearSimulator(p, model, None, omega)
-        sim.advance(300)
-        start = sim.state
-        st = sim.advance(15)
-        ref = reference_poincare(omega, model, p, transient=0, periods=15, initial_state=start)
-        e = float(np.max(np.abs(st.poincare[:, :10] - ref.states)))
-        page.row(
-            "Poincare states over 15 mesh periods [b0]",
-            "gear_env/reference.py (SciPy DOP853, rtol 1e-11, contact events)",
-            f"{model}, omega {omega}",
-            "DOP853 states",
-            f"max difference {e:.1e}",
-            "1e-3",
-            e < 1e-3,
-        )
+        src = "gear_env/reference.py (SciPy DOP853, rtol 1e-11, contact events)"
+        reference_row(page, GearParams(), model, omega, 300, 15, src, "")
     maps = {m: stability_map(m, cache=False) for m in ("constant", "dynamic")}
     iv = {m: max(maps[m].stable_intervals(), key=lambda t: t[1] - t[0]) for m in maps}
     lo, hi = iv["dynamic"]

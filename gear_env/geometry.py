@@ -382,6 +382,9 @@ class SpurPair:
         density: rho [kg/m^3] (masses and inertias only).
         addendum_coeff, tip_clearance_coeff: h_a* and c* of the basic rack.
         crack: an optional :class:`ToothCrack` on tooth 0 of the pinion or the gear.
+        kinematics: how the contact point moves along the flanks (:meth:`contact_angles`):
+            ``"ross"`` (default; ROSS's convention, what docs/VALIDATION.md pins) or
+            ``"line_of_action"`` (the exact path of contact of rigid involutes).
     """
 
     module: float
@@ -395,6 +398,7 @@ class SpurPair:
     addendum_coeff: float = 1.0
     tip_clearance_coeff: float = 0.25
     crack: ToothCrack | None = None
+    kinematics: str = "ross"
     pinion: SpurGear = field(init=False, repr=False, compare=False)
     gear: SpurGear = field(init=False, repr=False, compare=False)
 
@@ -439,6 +443,8 @@ class SpurPair:
                     f"SpurPair.crack: depth cos(angle) must stay below the {self.crack.on}'s root half-thickness "
                     f"{lim:.4g} m, got {self.crack.depth * math.cos(math.radians(self.crack.angle_deg)):.4g} m"
                 )
+        if self.kinematics not in ("ross", "line_of_action"):
+            raise ValueError(f"SpurPair.kinematics must be 'ross' or 'line_of_action', got {self.kinematics!r}")
         if not 1.0 < self.contact_ratio < 2.0:
             raise ValueError(
                 f"SpurPair: contact ratio {self.contact_ratio:.4f} outside (1, 2): the one/two-pair mesh model "
@@ -477,11 +483,25 @@ class SpurPair:
         return math.pi * self.youngs_modulus * self.face_width / (4.0 * (1.0 - self.poisson**2))
 
     # ------------------------------------------------------------------ mesh stiffness
-    def _pair_stiffness(self, d_alpha: np.ndarray, cracked: np.ndarray) -> np.ndarray:
-        """Stiffness of one tooth pair [N/m] whose pinion contact angle is start + d_alpha."""
+    def contact_angles(self, u: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Pressure angles [rad] of the contact point on the pinion and on the gear tooth of a pair
+        ``u`` mesh periods after it entered contact (0 <= u <= contact_ratio), by ``kinematics``:
+        ``"ross"`` linear in the pinion's pressure angle from its form circle to its tip (ROSS's
+        convention), ``"line_of_action"`` the contact point moving along the line of action by one
+        base pitch per mesh period from where the gear's tip circle cuts it to the pinion's tip."""
         p, g = self.pinion, self.gear
-        a1 = p.start_angle + d_alpha
-        a2 = g.tip_angle - self.teeth[0] / self.teeth[1] * d_alpha
+        u = np.asarray(u, dtype=float)
+        if self.kinematics == "ross":
+            d_alpha = (p.tip_angle - p.start_angle) / self.contact_ratio * u
+            return p.start_angle + d_alpha, g.tip_angle - self.teeth[0] / self.teeth[1] * d_alpha
+        path = self.centre_distance * math.sin(math.radians(self.pressure_angle_deg))  # T1 T2
+        s = path - math.sqrt(g.tip_radius**2 - g.base_radius**2) + self.base_pitch * u  # from T1
+        return np.arctan(s / p.base_radius), np.arctan((path - s) / g.base_radius)
+
+    def _pair_stiffness(self, u: np.ndarray, cracked: np.ndarray) -> np.ndarray:
+        """Stiffness of one tooth pair [N/m] ``u`` mesh periods after it entered contact."""
+        p, g = self.pinion, self.gear
+        a1, a2 = self.contact_angles(u)
         cp = p.tooth_compliance(a1)
         cg = g.tooth_compliance(a2)
         inv = np.asarray(1.0 / self.hertzian_stiffness + sum(cp.values()) + sum(cg.values()), dtype=float)
@@ -506,18 +526,15 @@ class SpurPair:
         if not np.all(np.isfinite(ph)):
             raise ValueError("SpurPair.mesh_stiffness: phase must be finite")
         cr = self.contact_ratio
-        p = self.pinion
-        d_mesh = (p.tip_angle - p.start_angle) / cr
         j = np.floor(ph)
         frac = ph - j
-        d_alpha = d_mesh * frac
         two = frac <= cr - 1.0
         zc = self.teeth[0] if self.crack is None or self.crack.on == "pinion" else self.teeth[1]
         first_cracked = np.mod(j, zc) == 0
         second_cracked = np.mod(j - 1.0, zc) == 0
-        flat = d_alpha.ravel()
+        flat = frac.ravel()
         k = self._pair_stiffness(flat, first_cracked.ravel())
-        k2 = self._pair_stiffness(flat + d_mesh, second_cracked.ravel())
+        k2 = self._pair_stiffness(flat + 1.0, second_cracked.ravel())
         k = k + np.where(two.ravel(), k2, 0.0)
         return k.reshape(ph.shape)
 
