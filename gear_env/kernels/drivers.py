@@ -48,6 +48,7 @@ from .layout import (
 )
 from .mesh import eom_residual_t, excitation, force_direction_t, force_t, friction_t, mesh_t, psi_t, step_consts
 from .newmark import (
+    LOCATE_TOL_STEP,
     _diverged_t,
     crossing_side_t,
     crossing_t,
@@ -501,7 +502,7 @@ def located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dp
         side = crossing_side_t(ra, region)
         a1 = (s1[10], s1[11], s1[12], s1[13], s1[14])
         located, th, sm, wm, _Fm, dm, bdm, _spm, _cpm = crossing_t(
-            sa, a1, ra, side, ga - side * gb, pa, dp, wa, w_b, c, k, dynamic, max_iter, tol
+            sa, a1, ra, side, ga - side * gb, pa, dp, wa, w_b, c, k, dynamic, max_iter, tol, LOCATE_TOL_STEP
         )
         if not located:
             break
