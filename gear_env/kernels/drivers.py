@@ -48,6 +48,7 @@ from .layout import (
 )
 from .mesh import eom_residual_t, excitation, force_direction_t, force_t, friction_t, mesh_t, psi_t, step_consts
 from .newmark import (
+    LOCATE_TOL_STEP,
     _diverged_t,
     crossing_side_t,
     crossing_t,
@@ -501,7 +502,7 @@ def located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dp
         side = crossing_side_t(ra, region)
         a1 = (s1[10], s1[11], s1[12], s1[13], s1[14])
         located, th, sm, wm, _Fm, dm, bdm, _spm, _cpm = crossing_t(
-            sa, a1, ra, side, ga - side * gb, pa, dp, wa, w_b, c, k, dynamic, max_iter, tol
+            sa, a1, ra, side, ga - side * gb, pa, dp, wa, w_b, c, k, dynamic, max_iter, tol, LOCATE_TOL_STEP
         )
         if not located:
             break
@@ -520,6 +521,17 @@ def located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dp
 
 @kernel
 def integrate_located(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats):
+    """:func:`integrate_located_tab` with the excitation table of the period computed here."""
+    return integrate_located_tab(
+        x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats,
+        _excitation_table(phi0, n_steps, c),
+    )  # fmt: skip
+
+
+@kernel
+def integrate_located_tab(
+    x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab
+):
     """:func:`integrate_stats` (same arguments and results) with every contact change located and
     the step split there (:func:`located_step_t`), so that no contact change lies inside a step: the
     Poincare map is then smooth in the state and omega, and its error has the expansion in h^2,
@@ -540,7 +552,6 @@ def integrate_located(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poinca
     el = 0.0
     wa = w0
     hc = step_coeffs(dphi / w0, k)
-    tab = _excitation_table(phi0, n_steps, c)
     for j in range(total):
         wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
         m = (j + 1) % n_steps
@@ -619,6 +630,9 @@ def integrate_tol(x, a, w0, w1, n_periods, n_start, c, dynamic, poincare, stats,
     st1 = np.empty(stats.shape[0])
     st2 = np.empty(stats.shape[0])
     el = 0.0
+    n_tab = n  # the excitation tables of the two runs, recomputed when N changes (rarely)
+    tab1 = _excitation_table(0.0, n, c)
+    tab2 = _excitation_table(0.0, 2 * n, c)
     for p in range(n_periods):
         wa = math.sqrt(w0 * w0 + dw2 * p / n_periods)
         wb = math.sqrt(w0 * w0 + dw2 * (p + 1.0) / n_periods)
@@ -627,10 +641,18 @@ def integrate_tol(x, a, w0, w1, n_periods, n_start, c, dynamic, poincare, stats,
             for i in range(NSTATE):
                 x1[i] = x[i]
                 x2[i] = x[i]
-            st, _d, _e = integrate_located(x1, a1, 0.0, wa, wb, 1, n, c, dynamic, pc1, st1, max_iter, tol, True)
+            if n != n_tab:
+                tab1 = _excitation_table(0.0, n, c)
+                tab2 = _excitation_table(0.0, 2 * n, c)
+                n_tab = n
+            st, _d, _e = integrate_located_tab(
+                x1, a1, 0.0, wa, wb, 1, n, c, dynamic, pc1, st1, max_iter, tol, True, tab1
+            )
             if st != OK:
                 return st, p, el, n
-            st, _d, el2 = integrate_located(x2, a2, 0.0, wa, wb, 1, 2 * n, c, dynamic, pc2, st2, max_iter, tol, True)
+            st, _d, el2 = integrate_located_tab(
+                x2, a2, 0.0, wa, wb, 1, 2 * n, c, dynamic, pc2, st2, max_iter, tol, True, tab2
+            )
             if st != OK:
                 return st, p, el, n
             spent += 3.0 * n

@@ -274,6 +274,9 @@ def newmark_branch_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol, r
 
 LOCATE_MAX_ITER = 60
 """Iterations of the crossing search of :func:`crossing_t` (Illinois; it needs 5-12)."""
+LOCATE_TOL_STEP = 1e-7
+"""Crossing tolerance of the integration drivers (``drivers.located_step_t``): a split point off by
+d theta changes the step's end by ~ (jump of the jerk) h^3 d theta, far below the step's error."""
 LOCATE_TOL = 1e-13
 """The crossing search stops when the bracket of the crossing is below this fraction of the step
 or the gap function is below LOCATE_TOL * 1e-2 b0."""
@@ -308,14 +311,15 @@ def branch_part_t(s, g1, theta, reg0, phi_a, dphi, w_a, w_b, c, k, dynamic, max_
 
 
 @kernel
-def crossing_t(s, g1, reg0, side, gap0, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol):
+def crossing_t(s, g1, reg0, side, gap0, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol, theta_tol=LOCATE_TOL):
     """Locate the contact change inside a Newmark step from the state tuple s (contact region
     ``reg0``, gap function ``gap0`` = Delta - side B_d at s) across the boundary ``side``
     (:func:`crossing_side_t`).
 
     The gap function at the end of the first part of the step, theta of its phase increment, with
     the force held on the branch ``reg0`` (:func:`branch_part_t`), is driven to zero by the
-    Illinois (modified regula falsi) method on theta in [0, 1]. ``g1`` is a guess of the
+    Illinois (modified regula falsi) method on theta in [0, 1] (to ``theta_tol``: the default
+    LOCATE_TOL for a smooth map and its Jacobian; the drivers use LOCATE_TOL_STEP). ``g1`` is a guess of the
     end-of-step accelerations. Returns (located, theta, state at the crossing, omega there, F,
     Delta, B_d, sin psi, cos psi); located is False if the whole step held on ``reg0`` does not
     cross (then the step is taken unlocated) or a part's Newton iteration fails.
@@ -338,7 +342,7 @@ def crossing_t(s, g1, reg0, side, gap0, phi_a, dphi, w_a, w_b, c, k, dynamic, ma
         if not ok:
             return False, tc, sc, wc, Fc, dc, bdc, spc, cpc
         gc = dc - side * bdc
-        if abs(gc) <= 1e-2 * LOCATE_TOL * scale or abs(tb - ta) <= LOCATE_TOL:
+        if abs(gc) <= 1e-2 * theta_tol * scale or abs(tb - ta) <= theta_tol:
             break
         if gc * gb < 0.0:
             ta, ga = tb, gb

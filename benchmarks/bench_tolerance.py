@@ -1,0 +1,92 @@
+"""Error-controlled integration (``GearSimulator(..., tol=...)``) against fixed steps: accuracy on
+the period-1 orbits and mesh periods per second, as ratios taken in one interleaved run.
+
+Accuracy: for period-1 attractors on an omega grid (both models; from a common state on the
+attractor, Newmark 512 steps x 300 periods from A10; orbits whose reference Poincare points repeat
+within 1e-5 (1 + max|x|)), the largest error over 10 Poincare points and the 10 states against
+``gear_env.reference`` (DOP853, rtol 1e-11, events). Speed: ``advance(periods)`` from the same
+states, fixed 192 steps and each tol alternately, ``--repeats`` rounds; the ratio is the
+summed time of fixed 192 over the summed time of the tol mode (> 1: tol mode faster).
+
+    python benchmarks/bench_tolerance.py                      # omega step 0.02 (~5 min)
+    python benchmarks/bench_tolerance.py --omega-step 0.1 --tols 1e-3 3e-4
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+
+from gear_env import GearParams, GearSimulator
+from gear_env.reference import reference_poincare
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--omega-step", type=float, default=0.02)
+    ap.add_argument("--tols", type=float, nargs="+", default=[2e-3, 1e-3, 5e-4, 2e-4, 1e-4])
+    ap.add_argument("--periods", type=int, default=50, help="mesh periods per timed advance (50)")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument(
+        "--speed-only",
+        action="store_true",
+        help="no accuracy part: time the modes on period-1 attractors at omega 0.7, 1.0, 1.3, 1.5, 2.6, 2.9",
+    )
+    args = ap.parse_args(argv)
+    omegas = np.round(np.arange(0.3, 3.0 + 1e-9, args.omega_step), 6)
+    if args.speed_only:
+        omegas = np.array([0.7, 1.0, 1.3, 1.5, 2.6, 2.9])
+    cases = []
+    for model in ("constant", "dynamic"):
+        for w in omegas:
+            sim = GearSimulator(GearParams(), model, 512, float(w))
+            sim.advance(300)
+            x0 = sim.state
+            if args.speed_only:
+                cases.append((model, float(w), x0, None))
+                continue
+            ref = reference_poincare(float(w), model, None, 0, 10, initial_state=x0)
+            if np.max(np.abs(ref.states[-1] - ref.states[-2])) <= 1e-5 * (1 + np.max(np.abs(ref.states[-1]))):
+                cases.append((model, float(w), x0, ref.states))
+    modes = [("fixed 192", None)] + [(f"tol {t:g}", t) for t in args.tols]
+    errs: dict[str, list[float]] = {m: [] for m, _ in modes}
+    steps: dict[str, list[float]] = {m: [] for m, _ in modes}
+    for model, w, x0, ref in [] if args.speed_only else cases:
+        for name, tol in modes:
+            sim = GearSimulator(GearParams(), model, 192 if tol is None else None, w, x0, tol=tol)
+            iv = sim.advance(10)
+            errs[name].append(float(np.max(np.abs(iv.poincare[:, :10] - ref))))
+            steps[name].append(float(iv.stats[19]) / 10 * (1.5 if tol is not None else 1.0))
+    if not args.speed_only:
+        print(f"{len(cases)} period-1 orbits (omega 0.3-3.0 step {args.omega_step}, both models), 10 Poincare points")
+        print("mode        | median error | p95 error | max error | Newmark steps per period (mean)")
+    for name, _ in [] if args.speed_only else modes:
+        e = np.array(errs[name])
+        print(f"{name:11s} | {np.median(e):12.2e} | {np.percentile(e, 95):9.2e} | {np.max(e):9.2e} | "
+              f"{np.mean(steps[name]):.0f}")  # fmt: skip
+    # speed, interleaved: the same states, all modes in turn, several rounds
+    timed = cases if args.speed_only else cases[:: max(1, len(cases) // 12)]
+    total = dict.fromkeys([m for m, _ in modes], 0.0)
+    for _name, tol in modes:  # compile and warm up
+        GearSimulator(GearParams(), "dynamic", 192 if tol is None else None, 1.0, tol=tol).advance(2)
+    for _ in range(args.repeats):
+        for model, w, x0, _ref in timed:
+            for name, tol in modes:
+                sim = GearSimulator(GearParams(), model, 192 if tol is None else None, w, x0, tol=tol)
+                t0 = time.perf_counter()
+                sim.advance(args.periods)
+                total[name] += time.perf_counter() - t0
+    base = total["fixed 192"]
+    n_per = len(timed) * args.repeats * args.periods
+    print(f"\nspeed over {len(timed)} orbits x {args.repeats} rounds x {args.periods} periods, interleaved "
+          f"(load average {os.getloadavg()[0]:.1f}):")  # fmt: skip
+    for name, _ in modes:
+        print(f"{name:11s} | {n_per / total[name]:9.0f} mesh periods/s | ratio vs fixed 192: {base / total[name]:.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
