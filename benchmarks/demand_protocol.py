@@ -12,7 +12,8 @@ the steps), the shortfall charge and the vibration cost (chaos + contact + impac
 divergence terms). The table gives each policy's mean return with its 95 % bootstrap CI, the share of the
 fixed-best -> oracle gap it closes (CI from resampling episodes), and the paired per-episode difference
 against ``--reference`` (default: the shipped policy) with its CI. ``--runs`` adds training runs (each run's
-``best_model.zip``): per run the same row, and over the runs the IQM of the per-episode gap scores with its
+``best_model.zip``, or a spec such as ``pretrained``: the shipped run): per run the same row, and over
+the runs the IQM of the per-episode gap scores with its
 95 % stratified-bootstrap CI (rliable). ``--select`` prints the run whose mean validation return is best
 (the shipped run's rule). ``--cache DIR`` keeps each (policy, episode) result in DIR/<set>/<policy>.json, so
 baselines are rolled out once (a changed policy needs a fresh cache file: delete it).
@@ -179,7 +180,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--set", default="test", help="seed set: validation, test or seeds:A-B (default test)")
     ap.add_argument("--policy", action="append", default=[], help="policy spec (default: the baselines)")
-    ap.add_argument("--runs", nargs="*", default=[], help="training run folders (their best_model.zip)")
+    ap.add_argument(
+        "--runs",
+        nargs="*",
+        default=[],
+        help="training runs: folders (their best_model.zip) or policy specs (pretrained)",
+    )
     ap.add_argument("--reference", default="pretrained", help="policy of the paired differences (default pretrained)")
     ap.add_argument("--select", action="store_true", help="print the run with the best mean return on this set")
     ap.add_argument("--cache", metavar="DIR", help="keep per-policy episode results here")
@@ -202,10 +208,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     cfg = task_config(ENV_ID)
     cache = Path(args.cache) if args.cache else None
     specs = list(dict.fromkeys(["oracle", "fixed-best", *(args.policy or BASELINES[2:])]))
-    runs = [str(Path(r) / "best_model.zip") for r in args.runs]
+    runs = [str(Path(r) / "best_model.zip") if Path(r).is_dir() else r for r in args.runs]
     t0 = time.perf_counter()
     print(f"{ENV_ID}: {len(specs)} policies + {len(runs)} runs on {args.set} seeds {seeds.start}-{seeds.stop - 1}")
-    results = {s: rollout(s, cfg, seeds, cache, label) for s in specs + runs}
+    results = {s: rollout(s, cfg, seeds, cache, label) for s in dict.fromkeys(specs + runs)}
     ref = args.reference if args.reference in results else None
     md, nums = table(results, ref)
     out: dict = {"set": args.set, "seeds": [seeds.start, seeds.stop - 1], "policies": nums}
