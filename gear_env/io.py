@@ -365,18 +365,32 @@ def hold_outputs(
 
     check_outputs(outputs, inputs)
     seen: dict[tuple[Any, ...], str] = {}
+    created: list[str] = []  # folders made here: removed again if the command fails and left them empty
     for name, path in (folders or {}).items():
         if path is None:
             continue
         p = os.fspath(path)
         if os.path.exists(p) and not os.path.isdir(p):
             raise ValueError(f"{name} {p!r} exists and is not a folder")
+        if not os.path.exists(p):
+            created.append(p)
         os.makedirs(p, exist_ok=True)
         key = _identity(p)
         if key in seen:
             raise ValueError(f"{name} {p!r} is the same folder as {seen[key]}; choose another path")
         seen[key] = f"{name} {p!r}"
     stack = ExitStack()
+
+    def _drop_empty_created(exc_type: Any, exc: Any, tb: Any) -> bool:
+        if exc_type is not None:
+            for folder in reversed(created):
+                try:
+                    os.rmdir(folder)  # only an empty folder: never anything the command or the user wrote
+                except OSError:
+                    pass
+        return False
+
+    stack.push(_drop_empty_created)  # runs last, after the locks are released
     try:
         for name, path in {**(folders or {}), **outputs}.items():
             if path is not None:
