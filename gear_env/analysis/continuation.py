@@ -49,10 +49,14 @@ from typing import Any
 import numpy as np
 
 from .. import kernels as K
+from .._numba_cache import announce_compile
 from ..errors import SimulationDivergedError
 from ..params import GearParams, model_code
 from ..simulator import NEWTON_MAX_ITER, NEWTON_TOL, GearSimulator, check_omega, default_steps_per_period
 from . import tangent as TG
+
+TANGENT_COMPILE_TIME = "4 min on an idle 2-core machine (one kernel holds all three tangent modes)"
+"""What the first-use notice of the tangent-map kernel says (measured: 231 s at load about 1)."""
 
 BIFURCATION_TYPES = ("fold", "period-doubling", "neimark-sacker", "grazing")
 MAX_TURN = 0.96
@@ -278,6 +282,7 @@ class OrbitMap:
         jac = np.empty((K.NSTATE, K.NSTATE))
         pc = np.empty((self.period, K.NSTATE))
         info = np.empty(TG.N_INFO)
+        announce_compile("tangent", "the continuation's tangent-map kernel", TANGENT_COMPILE_TIME)  # once per process
         status = TG.tangent_map(
             y, float(omega), self.period, int(steps), self._c, self.code, NEWTON_MAX_ITER, NEWTON_TOL, jac, pc, info,
             int(corrected),
