@@ -21,6 +21,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 
 GROUPS: dict[str, str] = {
+    "tangent": "the tangent map of continuation (gear-env continuation, continue_orbits)",
     "simulator": "GearSimulator, simulate, sweeps, Lyapunov, Floquet, GearSpeed-v0 (single env, 1 sub-env)",
     "simd-dynamic": "SIMD batch kernel, dynamic backlash (simulate_batch, vector env of >= 2 sub-envs)",
     "simd-constant": "SIMD batch kernel, constant backlash",
@@ -50,6 +51,18 @@ def _exercise(group: str) -> None:
         v = GearSpeedVectorEnv(1)
         v.reset(seed=0)
         v.step(v.action_space.sample())
+    elif group == "tangent":
+        import numpy as np
+
+        from . import kernels as K
+        from .analysis import tangent as TG
+        from .params import GearParams, model_code
+        from .simulator import NEWTON_MAX_ITER, NEWTON_TOL
+
+        x = np.zeros(K.NSTATE)
+        jac, pc, info = np.empty((K.NSTATE, K.NSTATE)), np.empty((1, K.NSTATE)), np.empty(TG.N_INFO)
+        c = GearParams().consts
+        TG.tangent_map(x, 1.2, 1, 16, c, model_code("dynamic"), NEWTON_MAX_ITER, NEWTON_TOL, jac, pc, info, 0)
     elif group in ("simd-dynamic", "simd-constant"):
         from .simulator import simulate_batch
 
