@@ -18,7 +18,8 @@ def test_list_and_bad_input(capsys):
     out = capsys.readouterr().out
     assert all(g in out for g in GROUPS)
     assert main(["compile", "--only", "gpu"]) == 2
-    assert "unknown kernel group 'gpu'; groups: tangent, simulator, simd-dynamic, simd-constant" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "unknown kernel group 'gpu'; groups: tangent, simulator, simd-dynamic, simd-constant" in err
     assert main(["compile", "--jobs", "0"]) == 2
     assert "--jobs must be >= 1" in capsys.readouterr().err
     with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
