@@ -8,7 +8,7 @@ import base64
 import json
 import pickle
 import shutil
-import zipfile
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +17,9 @@ import pytest
 from agents.ppo import TrainOptions, rollout_total, train
 from agents.registry import resolve_policy
 from agents.runs import RunFolder, RunFolderError
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from crafted_cases import rewrite_zip  # noqa: E402  (the crafted cases' zip rewriter, written once)
 
 FAST_ENV = {"steps_per_period": 32, "periods_per_step": 8, "max_steps": 16, "warmup_periods": 16}
 TINY_PPO = {"n_steps": 32, "batch_size": 64, "n_epochs": 2, "net_arch": [16, 16]}
@@ -55,15 +58,6 @@ def copy(run_dir, tmp_path):
     return dst
 
 
-def _rewrite_zip(path: Path, change) -> None:
-    with zipfile.ZipFile(path) as z:
-        entries = {n: z.read(n) for n in z.namelist()}
-    entries = change(entries)
-    with zipfile.ZipFile(path, "w") as z:
-        for n, b in entries.items():
-            z.writestr(n, b)
-
-
 def _pickled(marker: Path) -> dict:
     return {":type:": "<class 'x'>", ":serialized:": base64.b64encode(pickle.dumps(Payload(marker))).decode()}
 
@@ -92,7 +86,7 @@ def test_pickled_entries_of_a_model_zip_are_never_unpickled(copy, tmp_path):
         entries["data"] = json.dumps(data).encode()
         return entries
 
-    _rewrite_zip(copy / "model.zip", swap_policy_class)
+    rewrite_zip(copy / "model.zip", swap_policy_class)
     pol = resolve_policy(str(copy), FAST_ENV)
     assert pol.predict(np.zeros(10, np.float32))[0].shape == (1,)
     assert not marker.exists()
@@ -103,7 +97,7 @@ def test_pickled_entries_of_a_model_zip_are_never_unpickled(copy, tmp_path):
         entries["data"] = json.dumps(data).encode()
         return entries
 
-    _rewrite_zip(copy / "model.zip", add_entry)
+    rewrite_zip(copy / "model.zip", add_entry)
     with pytest.raises(RunFolderError, match=r"pickled entries \['evil'\]"):
         resolve_policy(str(copy), FAST_ENV)
     assert not marker.exists()
@@ -116,7 +110,7 @@ def test_a_pickle_in_the_network_weights_is_refused(copy, tmp_path):
         entries["policy.pth"] = pickle.dumps(Payload(marker))
         return entries
 
-    _rewrite_zip(copy / "model.zip", evil_weights)
+    rewrite_zip(copy / "model.zip", evil_weights)
     with pytest.raises(RunFolderError, match="corrupt model file"):
         resolve_policy(str(copy), FAST_ENV)
     assert not marker.exists()
@@ -141,7 +135,7 @@ def test_resume_loads_only_checkpoint_files_of_the_run_and_never_unpickles(copy,
         entries["data"] = json.dumps(data).encode()
         return entries
 
-    _rewrite_zip(ckpt, add_entry)
+    rewrite_zip(ckpt, add_entry)
     with pytest.raises(RunFolderError, match="pickled entries"):
         train(_opts(copy, timesteps=640, resume=True))
     assert not marker.exists()
