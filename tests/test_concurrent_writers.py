@@ -1,15 +1,17 @@
 """Issue 25: two writers on one output, as two real processes, for every command that writes.
 
 Writer A starts; as soon as it holds its output lock (the ``.<name>.lock`` file beside the output
-appears), writer B starts the same command on the same output. B must be refused at once (exit 2,
-"is being written by another process"), A must finish normally and its output must be complete
-(it loads), so nothing is lost. ``evaluate`` runs by default; every command with ``-m slow``.
+appears), A is frozen (SIGSTOP; it keeps its lock) and writer B starts the same command on the same
+output. B must be refused at once (exit 2, "is being written by another process"); then A resumes,
+must finish normally and its output must be complete (it loads), so nothing is lost. ``evaluate``
+runs by default; every command with ``-m slow``.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -82,8 +84,14 @@ def test_a_second_writer_is_refused_and_the_first_loses_nothing(command, tmp_pat
     while not lock.exists() and a.poll() is None and time.monotonic() - t0 < 120:
         time.sleep(0.05)
     assert a.poll() is None, f"writer A ended before B could start: {a.communicate()}"
-    b = _gear_env(*args, cwd=tmp_path)
-    b_out, b_err = b.communicate(timeout=300)
+    # Freeze A while B runs: a stopped process keeps its flock, so B meets a held lock however fast
+    # A's work is on this machine (a fast A once finished before B had started, and B rightly ran).
+    os.kill(a.pid, signal.SIGSTOP)
+    try:
+        b = _gear_env(*args, cwd=tmp_path)
+        b_out, b_err = b.communicate(timeout=300)
+    finally:
+        os.kill(a.pid, signal.SIGCONT)
     a_out, a_err = a.communicate(timeout=600)
     assert b.returncode == 2, (b_out, b_err)
     assert "being written by another process" in b_err and b_err.count("\n") == 1, b_err
