@@ -124,7 +124,11 @@ class TrainOptions:
     """Options of one training run (validated in ``__post_init__``).
 
     ``timesteps`` is the total number of environment steps (over all sub-environments), also when
-    resuming; ``eval_freq`` and ``checkpoint_freq`` are in total environment steps."""
+    resuming; ``eval_freq`` and ``checkpoint_freq`` are in total environment steps.
+
+    ``distill`` > 0 first fits the actor to the privileged teacher by that many DAgger iterations
+    (:mod:`agents.distill`; ``distill_params``: its ``DISTILL_DEFAULTS``); their environment steps count in
+    ``timesteps``, and PPO trains only for what ``timesteps`` leaves after them (0: distillation only)."""
 
     out: str
     env_id: str = GEAR_ENV_ID
@@ -142,10 +146,15 @@ class TrainOptions:
     progress_bar: bool = True
     tensorboard: bool = True
     verbose: int = 1
+    distill: int = 0
+    distill_params: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        from .distill import check_distill
+
+        check_distill(self.distill, dict(self.distill_params))
         bounds = {
-            "timesteps": (1, MAX_TIMESTEPS),
+            "timesteps": (0 if self.distill else 1, MAX_TIMESTEPS),
             "num_envs": (1, MAX_NUM_ENVS),
             "eval_episodes": (1, 100_000),
             "keep_checkpoints": (1, 100_000),
@@ -190,30 +199,34 @@ def _callbacks(run: RunFolder, opts: TrainOptions, eval_venv: Any, state: dict[s
             return True
 
         def evaluate(self) -> dict[str, Any]:
-            row = evaluate_model(
-                self.model, self.model.get_env(), eval_venv, opts.eval_episodes, seed=opts.seed + EVAL_SEED_OFFSET
-            )
-            row["wall_seconds"] = round(state["wall_before"] + time.perf_counter() - state["t0"], 3)
-            state["rows"].append(row)
-            for k, v in row.items():
-                if k != "timesteps" and isinstance(v, (int, float)):
-                    self.logger.record(f"eval/{k}", v)
-            if row["return_mean"] > state.get("best_return", -math.inf):
-                state["best_return"] = row["return_mean"]
-                run.save_model(
-                    self.model, self.model.get_env(), run.path / "best_model.zip", run.path / "best_vecnormalize.npz"
-                )
-            run.write_metrics(state["rows"], _summary(state, self.model.num_timesteps, opts))
-            if opts.verbose:
-                so = row.get("settled_omega_mean")
-                print(
-                    f"[eval] steps={row['timesteps']} return={row['return_mean']:.3f}+-{row['return_std']:.3f}"
-                    + (f" settled_omega={so:.3f}" if so is not None else ""),
-                    flush=True,
-                )
-            return row
+            return _evaluate_and_record(self.model, run, opts, eval_venv, state, self.logger)
 
     return CheckpointAndEval()
+
+
+def _evaluate_and_record(
+    model: Any, run: RunFolder, opts: TrainOptions, eval_venv: Any, state: dict[str, Any], logger: Any = None
+) -> dict[str, Any]:
+    """One in-training evaluation: a metrics row, best_model.zip when it is the best so far, metrics.json."""
+    row = evaluate_model(model, model.get_env(), eval_venv, opts.eval_episodes, seed=opts.seed + EVAL_SEED_OFFSET)
+    row["wall_seconds"] = round(state["wall_before"] + time.perf_counter() - state["t0"], 3)
+    state["rows"].append(row)
+    if logger is not None:
+        for k, v in row.items():
+            if k != "timesteps" and isinstance(v, (int, float)):
+                logger.record(f"eval/{k}", v)
+    if row["return_mean"] > state.get("best_return", -math.inf):
+        state["best_return"] = row["return_mean"]
+        run.save_model(model, model.get_env(), run.path / "best_model.zip", run.path / "best_vecnormalize.npz")
+    run.write_metrics(state["rows"], _summary(state, model.num_timesteps, opts))
+    if opts.verbose:
+        so = row.get("settled_omega_mean")
+        print(
+            f"[eval] steps={row['timesteps']} return={row['return_mean']:.3f}+-{row['return_std']:.3f}"
+            + (f" settled_omega={so:.3f}" if so is not None else ""),
+            flush=True,
+        )
+    return row
 
 
 def _next_multiple(n: int, freq: int) -> int:
@@ -446,6 +459,7 @@ def _write_run_config(run: RunFolder, opts: TrainOptions, env_config: dict[str, 
                 "checkpoint_freq": opts.checkpoint_freq,
             },
             "vecnormalize": True,
+            **({"distill": {"iterations": opts.distill, **_distill_params(opts)}} if opts.distill else {}),
             "observation_space": space_to_dict(venv.observation_space),
             "action_space": space_to_dict(venv.action_space),
             "versions": versions(),
@@ -456,6 +470,46 @@ def _write_run_config(run: RunFolder, opts: TrainOptions, env_config: dict[str, 
     atomic_write_text(
         run.confined(run.path / "env_config.json", "env_config.json"), json.dumps(env_config, indent=2) + "\n"
     )
+
+
+def _distill_params(opts: TrainOptions) -> dict[str, Any]:
+    from .distill import DISTILL_DEFAULTS
+
+    return {**DISTILL_DEFAULTS, **dict(opts.distill_params)}
+
+
+def _distill(
+    model: Any,
+    venv: Any,
+    run: RunFolder,
+    opts: TrainOptions,
+    env_config: dict[str, Any],
+    eval_venv: Any,
+    state: dict[str, Any],
+) -> int:
+    """The distillation phase of a new run (:mod:`agents.distill`): every iteration is evaluated like a PPO
+    evaluation (metrics row, best_model.zip); a checkpoint is written once it is complete, so ``--resume``
+    continues with PPO. Interrupted inside it, the run has no checkpoint: start it again with --overwrite."""
+    from .distill import distill
+
+    model.start_time = time.time_ns()  # as learn() would set it (a saved model carries it; the loader checks it)
+
+    def after(it: int, steps: int) -> None:
+        model.num_timesteps = steps
+        _evaluate_and_record(model, run, opts, eval_venv, state)
+
+    try:
+        steps = distill(model, venv, opts.env_id, env_config, opts.distill, _distill_params(opts), seed=opts.seed,
+                        on_iteration=after, verbose=opts.verbose)  # fmt: skip
+    except KeyboardInterrupt:
+        state["interrupted"] = True
+        run.write_metrics(state["rows"], _summary(state, int(model.num_timesteps), opts))
+        print("\ninterrupted during the distillation: no checkpoint (start again with --overwrite)", file=sys.stderr)
+        raise
+    model.num_timesteps = steps
+    state["distilled_steps"] = steps
+    run.save_checkpoint(model, venv, steps, keep=opts.keep_checkpoints)
+    return steps
 
 
 def _learn(
@@ -474,7 +528,7 @@ def _learn(
         model.learn(
             total_timesteps=state["total"] - start.steps,  # a whole number of rollouts: the bar ends at 100 %
             callback=cb,
-            reset_num_timesteps=start.model_path is None,
+            reset_num_timesteps=start.model_path is None and not state.get("distilled_steps"),
             progress_bar=progress,
             tb_log_name="PPO",
         )
@@ -497,7 +551,7 @@ def _finish(
     steps = int(model.num_timesteps)
     run.save_checkpoint(model, venv, steps, keep=opts.keep_checkpoints)
     if not state["rows"] or state["rows"][-1]["timesteps"] != steps:
-        cb.evaluate()
+        _evaluate_and_record(model, run, opts, state["eval_venv"], state)
     run.save_model(model, venv, run.model_path, run.vecnorm_path)
     state["finished"] = True
     summary = _summary(state, steps, opts)
@@ -553,8 +607,13 @@ def _train_locked(run: RunFolder, opts: TrainOptions, env_config: dict[str, Any]
         }
         if start.rows:
             state["best_return"] = max(r["return_mean"] for r in start.rows)
+        state["eval_venv"] = eval_venv
         cb = _callbacks(run, opts, eval_venv, state)
-        _learn(model, venv, run, opts, start, state, cb)
+        if start.model_path is None and opts.distill:
+            steps = _distill(model, venv, run, opts, env_config, eval_venv, state)
+            state["total"] = max(steps, rollout_total(opts, steps)) if opts.timesteps > steps else steps
+        if state["total"] > model.num_timesteps:
+            _learn(model, venv, run, opts, start, state, cb)
         return _finish(model, venv, run, opts, state, cb)
     finally:
         venv.close()

@@ -65,7 +65,7 @@ RUN_MARKER = ".gear-env-run"
 """Marker file a run folder carries from the moment ``train`` creates it (``--overwrite`` clears only run folders)."""
 CONFIG_KEYS = (
     "format", "env_id", "env_config", "ppo", "train", "vecnormalize", "observation_space", "action_space",
-    "versions", "command",
+    "versions", "command", "distill",
 )  # fmt: skip
 """The keys of config.json (any other key is refused)."""
 TRAIN_KEYS = ("timesteps", "num_envs", "seed", "eval_freq", "eval_episodes", "checkpoint_freq")
@@ -182,6 +182,11 @@ def _check_config(data: Mapping[str, Any], path: str) -> None:
                 check_keys(data[k], data[k].keys() if isinstance(data[k], dict) else (), path, k)
         if "command" in data:
             want_str(data["command"], path, "command", max_len=100_000)
+        if "distill" in data:  # the DAgger warm start (agents.distill), recorded for the reader
+            from .distill import DISTILL_DEFAULTS, check_distill
+
+            d = check_keys(data["distill"], ("iterations", *DISTILL_DEFAULTS), path, "distill")
+            check_distill(d.get("iterations"), {k: v for k, v in d.items() if k != "iterations"})
     except RunFolderError:
         raise
     except ValueError as exc:

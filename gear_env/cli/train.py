@@ -88,6 +88,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="checkpoint every N total steps (0 = off)",
     )
     p.add_argument("--ppo", action="append", default=[], metavar="KEY=VALUE", help="PPO hyper-parameter (JSON value)")
+    p.add_argument(
+        "--distill",
+        type=int_range(0, 1000),
+        default=0,
+        metavar="N",
+        help="first fit the policy to the privileged episode oracle by N DAgger iterations (agents/distill.py; "
+        "their environment steps count in --timesteps, whose default is then 0: distillation only)",
+    )
+    p.add_argument(
+        "--distill-set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="distillation setting: episodes (per iteration, default 100), epochs (20), learning_rate (1e-3), "
+        "batch_size (256)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-tensorboard", action="store_true", help="no TensorBoard logs")
     p.add_argument("--quiet", action="store_true", help="print only errors")
@@ -177,6 +193,14 @@ def options_from_args(args: argparse.Namespace) -> Any:
         if not explicit_env:  # resume with the stored environment unless the user asked for something else
             env_cfg, env_id = dict(stored["env_config"]), stored["env_id"]
         ppo = {**dict(stored.get("ppo", {})), **ppo}  # stored hyper-parameters, explicit --ppo on top (checked)
+    distill = int(getattr(args, "distill", 0) or 0)
+    distill_params = _kv(getattr(args, "distill_set", []) or [], "--distill-set")
+    if args.resume:
+        stored_distill = dict(RunFolder(args.out).read_config().get("distill", {}))
+        distill = int(stored_distill.pop("iterations", 0))  # done already: resuming continues with PPO
+        distill_params = stored_distill
+    if timesteps is None and distill:
+        timesteps = 0  # distillation only
     return TrainOptions(
         out=args.out,
         env_id=env_id,
@@ -193,6 +217,8 @@ def options_from_args(args: argparse.Namespace) -> Any:
         progress_bar=not args.no_progress,
         tensorboard=not args.no_tensorboard,
         verbose=0 if args.quiet else 1,
+        distill=distill,
+        distill_params=distill_params,
     )
 
 

@@ -1,0 +1,175 @@
+"""Privileged-teacher distillation (DAgger) of the episode oracle into the PPO actor.
+
+Why (issue #23, docs/TRAINING.md "Distillation"): on ``GearSpeedDemand-v0`` the information a sensor-only
+policy needs is in the observation (short scripts that read it close 94-96 % of the gap between fixed-best and
+the oracle), but PPO from scratch stops near 55 %: near a worn pair's cliff the return of a speed is
+asymmetric and the plant draw dominates the spread of the returns, so the policy gradient settles on a
+conservative hold near the family's mean. A teacher that *knows* the pair removes both problems: the
+episode oracle (:class:`agents.episode_oracle.EpisodeOracle`) gives the optimal next speed from any state, and
+supervised learning of that map from what is sensed is an easy regression.
+
+The algorithm is DAgger (Ross, Gordon & Bagnell 2011), as in teacher-student training of legged robots (Lee
+et al. 2020, "Learning quadrupedal locomotion over challenging terrain"):
+
+1. iteration 0: the teacher drives ``episodes`` training episodes; every visited observation is labelled with
+   the teacher's action; the observation statistics (``VecNormalize``) are fitted to these observations and
+   then kept;
+2. iteration i >= 1: the *student* (the deterministic PPO actor) drives ``episodes`` new training episodes and
+   the teacher labels the states the student visits (this is what plain behaviour cloning lacks: the student
+   learns to recover from its own mistakes);
+3. after every iteration the actor's mean (``mlp_extractor.policy_net`` + ``action_net``) is fitted to all
+   labels so far (mean squared error, Adam), and the run's usual in-training evaluation scores it.
+
+The student sees only the observation: the teacher's privileged knowledge (the plant, the future demand and
+duty cycle) enters only through the labels, and only on training episodes (episode seeds ``seed + k``,
+``k < iterations x episodes``, inside :data:`agents.protocol.TRAIN_ENV_SEEDS` for the reported runs).
+The result is an ordinary PPO model in an ordinary run folder: ``gear-env evaluate --policy RUN_DIR``, the
+export to a shipped policy and further PPO training (``--timesteps`` beyond the distillation's steps) work
+unchanged.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+DISTILL_DEFAULTS: dict[str, Any] = {"episodes": 100, "epochs": 20, "learning_rate": 1e-3, "batch_size": 256}
+"""Defaults of the distillation (per iteration: ``episodes`` rollouts, then ``epochs`` passes over all labels)."""
+MAX_ITERATIONS = 1_000
+MAX_EPISODES = 100_000
+
+
+def check_distill(iterations: Any, params: dict[str, Any]) -> None:
+    """ValueError naming the field unless ``iterations`` and ``params`` (``DISTILL_DEFAULTS`` keys) are valid."""
+    if isinstance(iterations, bool) or not isinstance(iterations, int) or not 0 <= iterations <= MAX_ITERATIONS:
+        raise ValueError(f"distill (DAgger iterations) must be an integer in [0, {MAX_ITERATIONS}], got {iterations!r}")
+    unknown = sorted(set(params) - set(DISTILL_DEFAULTS))
+    if unknown:
+        raise ValueError(f"unknown distillation setting(s) {unknown}; valid: {sorted(DISTILL_DEFAULTS)}")
+    for k, lo, hi in (("episodes", 1, MAX_EPISODES), ("epochs", 1, 10_000), ("batch_size", 1, 1_000_000)):
+        v = params.get(k, DISTILL_DEFAULTS[k])
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise ValueError(f"distill_{k} must be an integer in [{lo}, {hi}], got {v!r}")
+    lr = params.get("learning_rate", DISTILL_DEFAULTS["learning_rate"])
+    if isinstance(lr, bool) or not isinstance(lr, (int, float)) or not 0.0 < float(lr) <= 1.0:
+        raise ValueError(f"distill_learning_rate must be a number in (0, 1], got {lr!r}")
+
+
+def teacher_for(env_id: str, cfg: Any) -> Any:
+    """The privileged teacher of a task: the episode oracle (knows the plant, the demand and the duty cycle)."""
+    from .episode_oracle import EpisodeOracle
+
+    return EpisodeOracle(cfg, name="teacher")
+
+
+def _actor_mean(policy: Any, obs: Any) -> Any:
+    """The actor's mean action for normalised observations (a torch tensor; differentiable)."""
+    return policy.get_distribution(obs).distribution.mean
+
+
+def distill(
+    model: Any,
+    vecnorm: Any,
+    env_id: str,
+    env_config: Any,
+    iterations: int,
+    params: dict[str, Any] | None = None,
+    seed: int = 0,
+    on_iteration: Callable[[int, int], None] | None = None,
+    verbose: int = 1,
+) -> int:
+    """Fit the actor of the PPO ``model`` to the teacher by DAgger (module docstring); returns the environment
+    steps it took (the caller adds them to ``model.num_timesteps``).
+
+    ``vecnorm`` is the run's ``VecNormalize``: its observation statistics are set from iteration 0 and frozen.
+    ``on_iteration(i, steps)`` runs after each iteration (the training run evaluates and saves there)."""
+    import torch
+
+    from gear_env.env import GearSpeedEnv
+
+    from .envs import make_config
+
+    p = {**DISTILL_DEFAULTS, **(params or {})}
+    check_distill(iterations, p)
+    cfg = make_config(env_id, env_config)
+    env = GearSpeedEnv(cfg)
+    teacher = teacher_for(env_id, cfg)
+    policy = model.policy
+    rng_torch = torch.Generator().manual_seed(int(seed))
+    actor_params = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters()]
+    opt = torch.optim.Adam(actor_params, lr=float(p["learning_rate"]))
+    clip = float(vecnorm.clip_obs)
+    xs: list[np.ndarray] = []
+    ys: list[np.ndarray] = []
+    steps, k = 0, 0
+    mean = var = None
+
+    def student(o: np.ndarray) -> float:
+        z = np.clip((o - mean) / np.sqrt(var + vecnorm.epsilon), -clip, clip)
+        with torch.no_grad():
+            a = _actor_mean(policy, torch.as_tensor(z[None], dtype=torch.float32))
+        return float(np.clip(a.numpy()[0, 0], -1.0, 1.0))
+
+    try:
+        for it in range(iterations):
+            t0 = time.perf_counter()
+            if verbose:
+                who = "teacher" if it == 0 else "student"
+                print(f"[distill] iteration {it + 1}/{iterations}: {p['episodes']} episodes driven by the {who}, "
+                      "labelled by the teacher", flush=True)  # fmt: skip
+            obs_it, lab_it = [], []
+            for _ in range(p["episodes"]):
+                obs, _info = env.reset(seed=int(seed) + k)
+                k += 1
+                teacher.observe_episode(env.episode)
+                state, start = None, np.array([True])
+                while True:
+                    label, state = teacher.predict(obs[None], state, start, deterministic=True)
+                    start = np.array([False])
+                    obs_it.append(obs.astype(np.float64))
+                    lab_it.append(float(label[0, 0]))
+                    act = float(label[0, 0]) if it == 0 else student(obs.astype(np.float64))
+                    obs, _r, term, trunc, _info = env.step(np.array([act], np.float32))
+                    steps += 1
+                    if term or trunc:
+                        break
+            xs.append(np.asarray(obs_it))
+            ys.append(np.asarray(lab_it))
+            if it == 0:  # the statistics the student will always see its inputs through
+                x0 = xs[0]
+                mean, var = x0.mean(axis=0), x0.var(axis=0)
+                vecnorm.obs_rms.mean = mean.copy()
+                vecnorm.obs_rms.var = var.copy()
+                vecnorm.obs_rms.count = float(len(x0))
+            X = np.concatenate(xs)
+            z = np.clip((X - mean) / np.sqrt(var + vecnorm.epsilon), -clip, clip)
+            Xt = torch.as_tensor(z, dtype=torch.float32)
+            Yt = torch.as_tensor(np.concatenate(ys)[:, None], dtype=torch.float32)
+            policy.set_training_mode(True)
+            loss = torch.zeros(())
+            for _epoch in range(p["epochs"]):
+                perm = torch.randperm(len(Xt), generator=rng_torch)
+                for i in range(0, len(Xt), p["batch_size"]):
+                    j = perm[i : i + p["batch_size"]]
+                    loss = torch.mean((_actor_mean(policy, Xt[j]) - Yt[j]) ** 2)
+                    opt.zero_grad()
+                    loss.backward()
+                    opt.step()
+            policy.set_training_mode(False)
+            if verbose:
+                print(f"[distill] iteration {it + 1}/{iterations}: {len(Xt):,} labels, last batch loss "
+                      f"{float(loss.detach()):.4f}, {time.perf_counter() - t0:.1f} s", flush=True)  # fmt: skip
+            if on_iteration is not None:
+                on_iteration(it, steps)
+    finally:
+        env.close()
+    if verbose and iterations:
+        print(f"[distill] done: {steps:,} environment steps", file=sys.stderr if verbose < 0 else sys.stdout)
+    return steps
+
+
+__all__ = ["DISTILL_DEFAULTS", "check_distill", "distill", "teacher_for"]

@@ -1,0 +1,119 @@
+"""Issue #23: the DAgger warm start from the privileged episode oracle (agents/distill.py, ``train --distill``)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from agents.distill import check_distill, teacher_for  # noqa: E402
+from agents.ppo import TrainOptions, train  # noqa: E402
+from agents.trained import load_trained_policy  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+FAST = {"steps_per_period": 32, "periods_per_step": 8, "max_steps": 16, "warmup_periods": 16}
+ENV = "GearSpeedDemand-v0"
+
+
+def _opts(out: Path, **kw) -> TrainOptions:
+    base = dict(out=str(out), env_id=ENV, env_config=FAST, timesteps=0, num_envs=2, eval_episodes=2, distill=3,
+                distill_params={"episodes": 6, "epochs": 30}, progress_bar=False, tensorboard=False, verbose=0,
+                ppo={"n_steps": 32, "batch_size": 32, "n_epochs": 1})  # fmt: skip
+    return TrainOptions(**{**base, **kw})
+
+
+def _teacher_gap(run: Path, seeds) -> float:
+    """Mean |student action - teacher action| over the states the teacher visits on ``seeds``."""
+    from agents.envs import make_config
+    from gear_env.env import GearSpeedEnv
+
+    cfg = make_config(ENV, FAST)
+    env, teacher = GearSpeedEnv(cfg), teacher_for(ENV, cfg)
+    student = load_trained_policy(run, model_file="best_model.zip")
+    gaps = []
+    for s in seeds:
+        obs, _ = env.reset(seed=s)
+        teacher.observe_episode(env.episode)
+        state, start = None, np.array([True])
+        for _ in range(cfg.max_steps):
+            a, state = teacher.predict(obs[None], state, start)
+            b, _ = student.predict(obs[None], None, start, deterministic=True)
+            start = np.array([False])
+            gaps.append(abs(float(a[0, 0]) - float(b[0, 0])))
+            obs, *_rest, term, trunc, _info = env.step(a[0])
+            if term or trunc:
+                break
+    return float(np.mean(gaps))
+
+
+def test_bad_settings_name_the_field():
+    with pytest.raises(ValueError, match="distill .DAgger iterations. must be an integer in"):
+        check_distill(-1, {})
+    with pytest.raises(ValueError, match="unknown distillation setting.*'episods'"):
+        check_distill(2, {"episods": 3})
+    with pytest.raises(ValueError, match="distill_episodes must be an integer in \\[1, "):
+        check_distill(2, {"episodes": 0})
+    with pytest.raises(ValueError, match="distill_learning_rate"):
+        check_distill(2, {"learning_rate": float("nan")})
+    with pytest.raises(ValueError, match="timesteps must be an integer in \\[1, "):
+        TrainOptions(out="x", timesteps=0)  # 0 means "distillation only": refused without a distillation
+
+
+def test_the_student_learns_the_teacher_and_the_run_is_ordinary(tmp_path):
+    out = tmp_path / "d"
+    summary = train(_opts(out))
+    cfg = json.loads((out / "config.json").read_text())
+    assert cfg["distill"]["iterations"] == 3 and cfg["distill"]["episodes"] == 6
+    rows = json.loads((out / "metrics.json").read_text())["evaluations"]
+    assert [r["timesteps"] for r in rows] == [96, 192, 288]  # 3 iterations x 6 episodes x 16 steps
+    assert summary["timesteps"] == 288 and summary["finished"]
+    # a fresh actor is far from the teacher; the distilled one is close, on training episodes it never drove
+    # (seeds 0-17 drove the distillation; 500-503 are new)
+    fresh = tmp_path / "fresh"
+    train(_opts(fresh, distill_params={"episodes": 6, "epochs": 1, "learning_rate": 1e-9}))
+    assert _teacher_gap(out, range(500, 504)) < 0.5 * _teacher_gap(fresh, range(500, 504))
+    # the run folder is an ordinary one: the CLI evaluates it
+    r = subprocess.run(
+        [sys.executable, "-m", "gear_env", "evaluate", "--env", ENV, "--policy", str(out), "--episodes", "2",
+         "--seed", "800000", "--config", str(out / "env_config.json")],
+        capture_output=True, text=True, cwd=tmp_path, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"},
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+
+
+def test_distillation_is_deterministic_under_a_seed(tmp_path):
+    import torch
+
+    def weights(p: Path) -> list[np.ndarray]:
+        return [t.detach().numpy().copy() for t in load_trained_policy(p).model.policy.parameters()]
+
+    train(_opts(tmp_path / "a", distill=2))
+    train(_opts(tmp_path / "b", distill=2))
+    for x, y in zip(weights(tmp_path / "a"), weights(tmp_path / "b"), strict=True):
+        np.testing.assert_array_equal(x, y)
+    assert torch.get_num_threads() == 1
+
+
+def test_resume_continues_a_distilled_run_with_ppo(tmp_path):
+    out = tmp_path / "d"
+    train(_opts(out, distill=2))
+    stored = json.loads((out / "config.json").read_text())
+    summary = train(_opts(out, distill=2, resume=True, timesteps=192 + 64))
+    assert summary["timesteps"] == 256  # one PPO rollout (2 envs x 32 steps) after the 192 distillation steps
+    assert json.loads((out / "config.json").read_text()) == stored
+
+
+def test_cli_refuses_an_unknown_setting_before_any_work(tmp_path):
+    r = subprocess.run(
+        [sys.executable, "-m", "gear_env", "train", "--env", ENV, "--out", str(tmp_path / "x"), "--distill", "2",
+         "--distill-set", "epocs=3"],
+        capture_output=True, text=True, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"},
+    )  # fmt: skip
+    assert r.returncode == 2 and "unknown distillation setting(s) ['epocs']" in r.stderr, r.stderr
+    assert not (tmp_path / "x").exists()
