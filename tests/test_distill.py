@@ -117,3 +117,17 @@ def test_cli_refuses_an_unknown_setting_before_any_work(tmp_path):
     )  # fmt: skip
     assert r.returncode == 2 and "unknown distillation setting(s) ['epocs']" in r.stderr, r.stderr
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.slow
+def test_the_own_learner_loop_of_the_docs_runs(tmp_path):
+    """docs/TRAINING.md's DAgger loop with Gymnasium + torch only runs as written (3 rounds, 60 episodes)."""
+    text = (ROOT / "docs" / "TRAINING.md").read_text()
+    block = text.split("**With your own learner.**", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
+    script = tmp_path / "own_loop.py"
+    script.write_text(block)
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, cwd=tmp_path,
+                       env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"}, timeout=600)  # fmt: skip
+    assert r.returncode == 0, r.stderr[-2000:]
+    losses = [float(line.rsplit(" ", 1)[1]) for line in r.stdout.splitlines() if line.startswith("round ")]
+    assert len(losses) == 3 and all(0 <= v < 0.1 for v in losses), r.stdout
