@@ -565,6 +565,7 @@ def simulate_batch(
     params: GearParams | Sequence[GearParams] | None = None,
     omega_end: Any = None,
     initial_states: Any = None,
+    tol: float | None = None,
 ) -> list[IntervalStats]:
     """Simulate independent gear pairs at several meshing frequencies in one SIMD call.
 
@@ -599,6 +600,11 @@ def simulate_batch(
             values [X_p, Y_p, X_g, Y_g, U and their derivatives; b0 units, derivatives per unit
             natural time] for all systems, or an (n, 10) array, one row per system. With one
             omega and one parameter set, n rows make n systems.
+        tol: error per mesh period (b0 units) instead of ``steps_per_period``, as in
+            :class:`GearSimulator`: each system then runs error-controlled, one after another (the
+            SIMD lanes take one fixed step count), with exactly the result of
+            ``GearSimulator(params_i, model, omega=omega_i, initial_state=state_i, tol=tol)``
+            followed by ``advance(transient)`` and ``advance(periods, omega_end=omega_end_i)``.
 
     Returns:
         One :class:`IntervalStats` of the recorded periods per system, in order.
@@ -623,6 +629,13 @@ def simulate_batch(
     if w.size == 1:
         w = np.full(n, w[0])
     w_end = w if omega_end is None else _check_omega_end(omega_end, n)
+    err_tol = check_tol(tol)
+    if err_tol is not None:
+        if steps_per_period is not None:
+            raise ValueError(f"give steps_per_period or tol, not both (got {steps_per_period!r} and {tol!r})")
+        return [_tol_system(ps[i if len(ps) == n else 0], model, float(w[i]), float(w_end[i]),
+                            None if S is None else S[i if len(S) == n else 0], err_tol, n_tr, n_rec, i, n)
+                for i in range(n)]  # fmt: skip
     nsp = resolve_steps(steps_per_period, float(min(w.min(), w_end.min())))
     per_row = len(ps) == n  # else one shared parameter set
     C = stack_consts([q.consts for q in (ps if per_row else ps * n)])
@@ -647,6 +660,30 @@ def simulate_batch(
         run(n_tr, 0, w)
     pc, st, el = run(n_rec, n_tr, w_end)
     return [IntervalStats(float(w[i]), float(w_end[i]), n_rec, float(el[i]), pc[i], st[i]) for i in range(n)]
+
+
+def _tol_system(
+    params: GearParams,
+    model: str,
+    w: float,
+    w_end: float,
+    state: Any,
+    tol: float,
+    n_tr: int,
+    n_rec: int,
+    i: int,
+    n: int,
+) -> IntervalStats:
+    """One system of :func:`simulate_batch` with ``tol``: the error-controlled single simulator."""
+    sim = GearSimulator(params, model, None, w, state, tol)
+    done = 0
+    try:
+        if n_tr > 0:
+            sim.advance(n_tr)
+            done = n_tr
+        return sim.advance(n_rec, omega_end=None if w_end == w else w_end)
+    except SimulationDivergedError as exc:  # counted from the start of the call, as the SIMD path does
+        raise SimulationDivergedError(done + exc.period, f"{exc.reason} (system {i} of {n})", w) from None
 
 
 def _check_states_rows(states: Any) -> np.ndarray:

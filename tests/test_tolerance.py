@@ -70,3 +70,28 @@ def test_located_driver_equals_the_fixed_step_driver_without_contact_changes():
             out.append((pc.copy(), st[K.ST_SPLITS]))
         assert bool(np.array_equal(out[0][0], out[1][0])) is same
         assert bool(out[1][1] == 0) is same
+
+
+def test_simulate_batch_with_tol_is_the_single_simulator_per_system():
+    """simulate_batch(tol=): each system is GearSimulator(..., tol) bit for bit (params, states, ramps per
+    system), it agrees with a fine fixed-step batch, and tol with steps_per_period is refused."""
+    from gear_env import simulate_batch
+
+    omegas, ends = [0.8, 1.5], [0.8, 1.4]
+    x0 = GearSimulator(GearParams(), "dynamic", 192, 1.5)
+    x0.advance(5)
+    states = np.stack([np.zeros(10), x0.state])
+    out = simulate_batch(omegas, "dynamic", periods=6, transient=4, omega_end=ends, initial_states=states, tol=1e-4)
+    fine = simulate_batch(omegas, "dynamic", periods=6, transient=4, omega_end=ends, initial_states=states,
+                          steps_per_period=1024)  # fmt: skip
+    for i, (w, we) in enumerate(zip(omegas, ends, strict=True)):
+        sim = GearSimulator(GearParams(), "dynamic", None, w, states[i], tol=1e-4)
+        sim.advance(4)
+        iv = sim.advance(6, omega_end=None if we == w else we)
+        np.testing.assert_array_equal(out[i].poincare, iv.poincare)
+        assert (out[i].omega_start, out[i].omega_end) == (w, we)
+        assert np.max(np.abs(out[i].poincare[:, :10] - fine[i].poincare[:, :10])) < 3e-3
+    with pytest.raises(ValueError, match="not both"):
+        simulate_batch([1.0], steps_per_period=64, tol=1e-4)
+    with pytest.raises(ValueError, match="tol must be a number in"):
+        simulate_batch([1.0], tol=0.5)
