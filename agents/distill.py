@@ -37,8 +37,11 @@ from typing import Any
 
 import numpy as np
 
-DISTILL_DEFAULTS: dict[str, Any] = {"episodes": 100, "epochs": 20, "learning_rate": 1e-3, "batch_size": 256}
-"""Defaults of the distillation (per iteration: ``episodes`` rollouts, then ``epochs`` passes over all labels)."""
+DISTILL_DEFAULTS: dict[str, Any] = {
+    "episodes": 100, "epochs": 20, "learning_rate": 1e-3, "batch_size": 256, "final_lr_fraction": 1.0,
+}  # fmt: skip
+"""Defaults of the distillation (per iteration: ``episodes`` rollouts, then ``epochs`` passes over all labels,
+the learning rate going linearly from ``learning_rate`` to ``final_lr_fraction`` x ``learning_rate``)."""
 MAX_ITERATIONS = 1_000
 MAX_EPISODES = 100_000
 
@@ -54,9 +57,10 @@ def check_distill(iterations: Any, params: dict[str, Any]) -> None:
         v = params.get(k, DISTILL_DEFAULTS[k])
         if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
             raise ValueError(f"distill_{k} must be an integer in [{lo}, {hi}], got {v!r}")
-    lr = params.get("learning_rate", DISTILL_DEFAULTS["learning_rate"])
-    if isinstance(lr, bool) or not isinstance(lr, (int, float)) or not 0.0 < float(lr) <= 1.0:
-        raise ValueError(f"distill_learning_rate must be a number in (0, 1], got {lr!r}")
+    for k in ("learning_rate", "final_lr_fraction"):
+        v = params.get(k, DISTILL_DEFAULTS[k])
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 < float(v) <= 1.0:
+            raise ValueError(f"distill_{k} must be a number in (0, 1], got {v!r}")
 
 
 def teacher_for(env_id: str, cfg: Any) -> Any:
@@ -151,7 +155,10 @@ def distill(
             Yt = torch.as_tensor(np.concatenate(ys)[:, None], dtype=torch.float32)
             policy.set_training_mode(True)
             loss = torch.zeros(())
-            for _epoch in range(p["epochs"]):
+            for epoch in range(p["epochs"]):
+                frac = 1.0 - (1.0 - float(p["final_lr_fraction"])) * epoch / max(1, p["epochs"] - 1)
+                for group in opt.param_groups:
+                    group["lr"] = float(p["learning_rate"]) * frac
                 perm = torch.randperm(len(Xt), generator=rng_torch)
                 for i in range(0, len(Xt), p["batch_size"]):
                     j = perm[i : i + p["batch_size"]]

@@ -265,6 +265,7 @@ def export_run(run_dir: str | Path, env_id: str, out_dir: str | Path, use_best: 
         "command": cfg.get("command"),
         "model": stem,
         "ppo": cfg.get("ppo"),
+        **({"distill": cfg["distill"]} if "distill" in cfg else {}),
         "metrics": metrics,
     }
     return export_policy(model, vn, env_id, cfg["env_config"], out_dir, summary)
