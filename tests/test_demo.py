@@ -14,7 +14,7 @@ def test_demo_runs(tmp_path, capsys):
     assert out.index("GearSpeed-v1") < out.index("GearSpeedDemand-v0")
     for env_id in ("GearSpeed-v1", "GearSpeedDemand-v0"):
         table = (tmp_path / f"{env_id}.md").read_text()
-        for row in ("| learned (pretrained PPO) |", "| fixed-best |", "| oracle |"):
+        for row in ("| learned (shipped policy) |", "| fixed-best |", "| oracle |"):
             assert row in table, (env_id, row)
         assert "% of oracle" in table
     assert "demand delivered" in (tmp_path / "GearSpeedDemand-v0.md").read_text()

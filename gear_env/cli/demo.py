@@ -106,7 +106,7 @@ DEMO_POLICIES = (
 """Policy specs the task steps show, in this order, each resolved through agents.registry by name; a spec the
 registry does not know (or whose task it does not fit) is left out, so new scripted policies appear here by
 being registered."""
-LEARNED = "learned (pretrained PPO)"
+LEARNED = "learned (shipped policy)"
 
 
 def task_demo(step: int, env_id: str, episodes: int, out: str) -> dict[str, tuple[float, float]]:
