@@ -125,6 +125,10 @@ class GearSpeedConfig(TableConfig):
         model: backlash model, ``"dynamic"`` (default) or ``"constant"``.
         steps_per_period: Newmark steps per mesh period, in [16, 1024]; default 64 (the env's fast
             preset, same regime boundaries as the simulator's 128; see docs/ENVIRONMENT.md).
+        tol: None (default: fixed steps) or the error per mesh period in b0 units, in [1e-8, 0.1]:
+            every mesh period is then integrated with contact changes located and Richardson-extrapolated
+            N and 2N steps, N chosen per period per system (as ``GearSimulator(tol=)``);
+            ``steps_per_period`` is then unused. The single and the vector env stay identical.
         randomize_params: if True, every episode multiplies kappa, the three damping ratios and
             the two torques by independent factors uniform in [1 - s, 1 + s], s = ``randomize_scale``.
         randomize_scale: relative jitter s, in [0, 0.5].

@@ -26,7 +26,7 @@ from . import env_terms as ET
 from . import kernels as K
 from ._numba_cache import announce_compile
 from .env_config import GearSpeedConfig
-from .integration import integrate
+from .integration import TOL_N_START, integrate
 from .params import C_FS, GearParams, model_code
 from .tasks import Episode, random_demand
 
@@ -159,6 +159,7 @@ class GearSpeedCore:
         self.F = np.zeros((n, ET.N_FEATURES), np.float32)
         self.ACC = np.zeros((n, EK.N_ACC))
         self.S = terms.settings_vector(cfg)
+        self.n_tol = np.full(n, TOL_N_START, np.int64)  # with `tol`: each row's coarse step count N
         self._pc_buf = np.zeros((1, cfg.periods_per_step, K.N_PC))
         self._st_buf = np.zeros((1, K.N_STATS))
         self._zeros = np.zeros(n)
@@ -197,6 +198,8 @@ class GearSpeedCore:
         """
         cfg = self.config
         m = len(rows)
+        if cfg.tol is not None:
+            return self._integrate_tol(rows, w0, w1, periods)
         if self.single and m == 1:  # fast path of the single env: no fancy indexing, reused buffers
             r = int(rows[0])
             if self._pc_buf.shape[1] != periods:
@@ -225,6 +228,30 @@ class GearSpeedCore:
         ok = (status == K.OK) & np.isfinite(st).all(axis=1)
         self.X[rows[ok]] = X[ok]
         self.A[rows[ok]] = A[ok]
+        return pc, st, ok, elapsed
+
+    def _integrate_tol(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int):
+        """:meth:`_integrate` with the error-controlled integrator (``tol``), one row after another (the
+        SIMD lanes take one fixed step count); each row carries its step count from period to period."""
+        m = len(rows)
+        pc = np.zeros((m, periods, K.N_PC))
+        st = np.zeros((m, K.N_STATS))
+        ok = np.zeros(m, bool)
+        elapsed = np.zeros(m)
+        for i, r in enumerate(rows):
+            x = self.X[r].copy()
+            a = self.A[r].copy()
+            run = integrate(
+                x, a, self._C_ro[r], self.code, float(w0[i]), float(w1[i]), periods, 0, poincare=pc[i], stats=st[i],
+                err_tol=float(self.config.tol), n_start=int(self.n_tol[r]),
+            )  # fmt: skip
+            ok[i] = run.status == K.OK and bool(np.isfinite(st[i]).all())
+            elapsed[i] = run.elapsed
+            if ok[i]:
+                self.X[r] = x
+                self.A[r] = a
+                if run.steps_last:
+                    self.n_tol[r] = int(run.steps_last)
         return pc, st, ok, elapsed
 
     def demand(self, step: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
@@ -332,6 +359,7 @@ class GearSpeedCore:
             self._set_plant(r, p if load is None else self.episodes[r].params_at(0), equilibrium=True)
         self.omega[rows] = w_init
         self.hist[rows] = 0.0
+        self.n_tol[rows] = TOL_N_START  # with `tol`: a fresh episode starts from the same step count
         pps = cfg.periods_per_step
         pre = cfg.warmup_total - pps
         ok_all = np.ones(len(rows), bool)

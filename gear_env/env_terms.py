@@ -260,6 +260,13 @@ def _max_domega(label: str, v: Any, cfg: Any) -> float:
     return check_real(label, v, 0.0, cfg.omega_max - cfg.omega_min, lo_open=True)
 
 
+def _tol(label: str, v: Any, cfg: Any) -> float | None:
+    """None (fixed steps) or the error per mesh period in b0 units, in [1e-8, 0.1]."""
+    if v is None:
+        return None
+    return check_real(label, v, 1e-8, 0.1)
+
+
 def _initial_omega(label: str, v: Any, cfg: Any) -> Any:
     lo, hi = cfg.omega_min, cfg.omega_max
     if v is None:
@@ -371,6 +378,10 @@ SETTINGS: tuple[Setting, ...] = (
             "static mesh force >= 1e-6 N (features are relative to it)", shown="Table 1"),
     Setting("model", "dynamic", choice(*BACKLASH_MODELS), '"dynamic", "constant"', "backlash model"),
     Setting("steps_per_period", 64, integer(16, 1024), "[16, 1024]", "Newmark steps per mesh period"),
+    Setting("tol", None, _tol, "None, [1e-8, 0.1]",
+            "error per mesh period (b0 units) instead of `steps_per_period`: every mesh period integrated with "
+            "contact changes located and N, 2N steps Richardson-extrapolated, N chosen per period "
+            "(`GearSimulator(tol=)`); None: fixed steps"),
     Setting("randomize_params", False, boolean, "bool", "per-episode jitter of kappa, xi_m, xi_p, xi_g, T_p, T_g"),
     Setting("randomize_scale", 0.1, real(0.0, 0.5), "[0, 0.5]",
             "relative jitter (uniform factors in [1-s, 1+s], seeded)"),

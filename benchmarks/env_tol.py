@@ -1,0 +1,83 @@
+"""Accuracy and cost of the environments' integration settings: fixed steps per mesh period against ``tol``.
+
+For each episode seed, every setting runs the same episode (reset + a fixed sequence of set-point actions) on
+``GearSpeedDemand-v0``; the error is the largest difference of the physical features (force RMS, force peak,
+bearing deflection: observation entries 2-4, log1p-scaled) from the same episode at 1024 steps per period, and
+the cost the CPU time of the steps (the settings interleaved per seed, so drift of the machine hits all alike).
+
+    python benchmarks/env_tol.py                 # 10 seeds x 20 steps, about a minute
+    python benchmarks/env_tol.py --seeds 20 --steps 40 --json env_tol.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+SETTINGS = {
+    "64 steps (default)": {},
+    "128 steps": {"steps_per_period": 128},
+    "192 steps": {"steps_per_period": 192},
+    "tol 1e-3": {"tol": 1e-3},
+    "tol 1e-4": {"tol": 1e-4},
+    "tol 1e-5": {"tol": 1e-5},
+}
+
+
+def episode(env_id: str, seed: int, actions: np.ndarray, **kw) -> tuple[np.ndarray, float]:
+    """(observations (steps + 1, obs_dim), CPU seconds of the steps) of one episode."""
+    import gymnasium as gym
+
+    env = gym.make(env_id, **kw)
+    o, _ = env.reset(seed=seed)
+    obs = [o]
+    t0 = time.process_time()
+    for a in actions:
+        o, *_ = env.step(np.array([a], np.float32))
+        obs.append(o)
+    return np.array(obs), time.process_time() - t0
+
+
+def main(argv: list[str] | None = None) -> int:
+    import gear_env  # noqa: F401
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--env", default="GearSpeedDemand-v0")
+    ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--json", metavar="PATH")
+    args = ap.parse_args(argv)
+    rng = np.random.default_rng(0)
+    actions = np.clip(np.cumsum(rng.normal(0, 0.15, args.steps)) * 0.5 + 0.2, -1, 1)
+    for kw in SETTINGS.values():  # compile and warm every path first
+        episode(args.env, 0, actions[:2], **kw)
+    err: dict[str, list[float]] = {k: [] for k in SETTINGS}
+    cpu: dict[str, float] = dict.fromkeys(SETTINGS, 0.0)
+    for seed in range(args.seeds):
+        ref, _ = episode(args.env, 1000 + seed, actions, steps_per_period=1024)
+        for name, kw in SETTINGS.items():
+            o, t = episode(args.env, 1000 + seed, actions, **kw)
+            err[name].append(float(np.max(np.abs(o[:, 2:5] - ref[:, 2:5]))))
+            cpu[name] += t
+    base = cpu["64 steps (default)"]
+    print(f"{args.env}: {args.seeds} episodes x {args.steps} steps; error = max |feature - 1024-step feature|")
+    print("| setting | median error | max error | CPU per step [ms] | CPU vs 64 steps |")
+    print("|---|---:|---:|---:|---:|")
+    out = {}
+    for name in SETTINGS:
+        e = np.array(err[name])
+        ms = 1e3 * cpu[name] / (args.seeds * args.steps)
+        print(f"| {name} | {np.median(e):.1e} | {e.max():.1e} | {ms:.2f} | {cpu[name] / base:.2f}x |")
+        out[name] = {"median_error": float(np.median(e)), "max_error": float(e.max()), "cpu_ms_per_step": ms}
+    if args.json:
+        from gear_env.io import atomic_write_text
+
+        atomic_write_text(args.json, json.dumps(out, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
