@@ -64,10 +64,12 @@ def check_distill(iterations: Any, params: dict[str, Any]) -> None:
 
 
 def teacher_for(env_id: str, cfg: Any) -> Any:
-    """The privileged teacher of a task: the episode oracle (knows the plant, the demand and the duty cycle)."""
-    from .episode_oracle import EpisodeOracle
+    """The teacher of a task: its ``oracle`` policy (:func:`agents.registry.resolve_policy`). On a task with an
+    episode scenario (GearSpeedDemand-v0) that is the episode oracle, privileged (it knows the plant, the demand
+    and the duty cycle); on GearSpeed-v0/v1 the oracle of the steady reward map of the one plant."""
+    from .registry import resolve_policy
 
-    return EpisodeOracle(cfg, name="teacher")
+    return resolve_policy("oracle", cfg, env_id=env_id)
 
 
 def _actor_mean(policy: Any, obs: Any) -> Any:
@@ -129,7 +131,8 @@ def distill(
             for _ in range(p["episodes"]):
                 obs, _info = env.reset(seed=int(seed) + k)
                 k += 1
-                teacher.observe_episode(env.episode)
+                if env.episode is not None and hasattr(teacher, "observe_episode"):
+                    teacher.observe_episode(env.episode)
                 state, start = None, np.array([True])
                 while True:
                     label, state = teacher.predict(obs[None], state, start, deterministic=True)

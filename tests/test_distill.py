@@ -109,6 +109,14 @@ def test_resume_continues_a_distilled_run_with_ppo(tmp_path):
     assert json.loads((out / "config.json").read_text()) == stored
 
 
+def test_tasks_without_a_scenario_distill_from_their_steady_map_oracle(tmp_path):
+    """GearSpeed-v1 has no episode scenario: the teacher is its steady-map oracle, and the student learns it."""
+    out = tmp_path / "v1"
+    train(_opts(out, env_id="GearSpeed-v1", distill=2, distill_params={"episodes": 4, "epochs": 30}))
+    rows = json.loads((out / "metrics.json").read_text())["evaluations"]
+    assert [r["timesteps"] for r in rows] == [64, 128]
+
+
 def test_cli_refuses_an_unknown_setting_before_any_work(tmp_path):
     r = subprocess.run(
         [sys.executable, "-m", "gear_env", "train", "--env", ENV, "--out", str(tmp_path / "x"), "--distill", "2",
