@@ -107,6 +107,11 @@ DEMO_POLICIES = (
 registry does not know (or whose task it does not fit) is left out, so new scripted policies appear here by
 being registered."""
 LEARNED = "learned (shipped policy)"
+MORE = {
+    "GearSpeed-v1": "20 episodes and three training seeds: docs/RESULTS.md",
+    "GearSpeedDemand-v0": "100 test episodes and five training seeds: docs/tasks/GearSpeedDemand-v0.md",
+}
+"""Where each task's fuller numbers are (the demo's few episodes are a glance)."""
 
 
 def task_demo(step: int, env_id: str, episodes: int, out: str) -> dict[str, tuple[float, float]]:
@@ -150,7 +155,7 @@ def task_demo(step: int, env_id: str, episodes: int, out: str) -> dict[str, tupl
         fixed = scores.get("fixed-best", (float("nan"), 0.0))[0]
         print(
             f"   the learned policy: {scores[LEARNED][0]:.1f} % of the oracle, the best fixed speed {fixed:.1f} % "
-            f"(20 episodes and three training seeds: docs/RESULTS.md)  -> {md}"
+            f"({MORE.get(env_id, 'docs/RESULTS.md')})  -> {md}"
         )
     return scores
 
