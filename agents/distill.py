@@ -182,4 +182,72 @@ def distill(
     return steps
 
 
-__all__ = ["DISTILL_DEFAULTS", "check_distill", "distill", "teacher_for"]
+def _callback_base() -> Any:
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    return BaseCallback
+
+
+class DistillCallback(_callback_base()):  # type: ignore[misc]
+    """The distillation as an SB3 callback, for rl-zoo3 (``callback:`` in agents/hyperparams/ppo.yml) and any
+    SB3 training loop: at the start of ``learn()`` it runs :func:`distill` on the model's actor, keeps the round
+    that scored best on ``eval_episodes`` in-training evaluation episodes (seeds ``seed + 1_000_003 + i``, as
+    ``gear-env train``), and with ``stop=True`` (default) ends ``learn()`` at its first step, so the saved model
+    is the distilled one; with ``stop=False`` PPO continues from it.
+
+    The training env must be the task's environment behind ``VecNormalize`` (rl-zoo3's ``normalize: true``)."""
+
+    def __init__(self, iterations: int = 12, stop: bool = True, eval_episodes: int = 20, verbose: int = 1,
+                 **params: Any):  # fmt: skip
+        super().__init__(verbose)
+        check_distill(iterations, params)
+        if not isinstance(stop, bool):
+            raise ValueError(f"stop must be True or False, got {stop!r}")
+        if isinstance(eval_episodes, bool) or not isinstance(eval_episodes, int) or not 1 <= eval_episodes <= 10_000:
+            raise ValueError(f"eval_episodes must be an integer in [1, 10000], got {eval_episodes!r}")
+        self.iterations, self.stop, self.eval_episodes, self.params = iterations, stop, eval_episodes, dict(params)
+        self.steps = 0
+
+    def _on_training_start(self) -> None:
+        import copy
+
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        from .envs import config_to_dict, make_sb3_vec_env
+        from .ppo import EVAL_SEED_OFFSET, evaluate_model
+
+        venv = self.model.get_env()
+        if not isinstance(venv, VecNormalize):
+            raise ValueError("DistillCallback needs the training env behind VecNormalize (rl-zoo3: normalize: true)")
+        env_id = venv.get_attr("spec")[0].id
+        env_config = config_to_dict(venv.get_attr("config")[0])
+        seed = int(self.model.seed or 0)
+        eval_venv = make_sb3_vec_env(env_id, env_config, min(self.eval_episodes, 8), None)
+        best: dict[str, Any] = {"ret": -np.inf}
+
+        def after(it: int, steps: int) -> None:
+            self.model.num_timesteps = steps
+            row = evaluate_model(self.model, venv, eval_venv, self.eval_episodes, seed=seed + EVAL_SEED_OFFSET)
+            if self.verbose:
+                print(f"[distill] round {it + 1}: evaluation return {row['return_mean']:.3f}", flush=True)
+            if row["return_mean"] > best["ret"]:
+                best.update(ret=row["return_mean"], it=it, actor=copy.deepcopy(self.model.policy.state_dict()))
+
+        try:
+            self.steps = distill(self.model, venv, env_id, env_config, self.iterations, self.params, seed=seed,
+                                 on_iteration=after, verbose=self.verbose)  # fmt: skip
+        finally:
+            eval_venv.close()
+        if "actor" in best:
+            self.model.policy.load_state_dict(best["actor"])
+            if self.verbose:
+                print(f"[distill] kept round {best['it'] + 1} (evaluation return {best['ret']:.3f})", flush=True)
+        self.model.num_timesteps = self.steps
+        if self.stop:
+            venv.training = False  # the statistics stay those of the distillation
+
+    def _on_step(self) -> bool:
+        return not self.stop
+
+
+__all__ = ["DISTILL_DEFAULTS", "DistillCallback", "check_distill", "distill", "teacher_for"]

@@ -12,7 +12,9 @@ import ast
 from pathlib import Path
 from typing import Any
 
-ZOO_ONLY = ("n_envs", "n_timesteps", "normalize", "policy", "policy_kwargs", "env_kwargs")
+ZOO_ONLY = ("n_envs", "n_timesteps", "normalize", "policy", "policy_kwargs", "env_kwargs", "callback")
+DISTILL_CALLBACK = "agents.distill.DistillCallback"
+"""The one rl-zoo3 callback ``gear-env train --hyperparams`` understands: it becomes ``--distill``."""
 """rl-zoo3 keys that are not PPO keywords."""
 
 
@@ -30,8 +32,21 @@ def _policy_kwargs(text: Any, where: str) -> dict[str, Any]:
         raise ValueError(f"{where}: policy_kwargs must be dict(key=literal, ...), got {text!r}") from None
 
 
+def _zoo_callback(value: Any, where: str) -> dict[str, Any]:
+    """The keyword arguments of the entry's ``callback`` (only :data:`DISTILL_CALLBACK`, alone)."""
+    items = value if isinstance(value, list) else [value]
+    if len(items) != 1:
+        raise ValueError(f"{where}: callback: gear-env train runs only {DISTILL_CALLBACK}, got {value!r}")
+    item = items[0]
+    name, kwargs = next(iter(item.items())) if isinstance(item, dict) and len(item) == 1 else (item, {})
+    if name != DISTILL_CALLBACK or not isinstance(kwargs, dict):
+        raise ValueError(f"{where}: callback: gear-env train runs only {DISTILL_CALLBACK}, got {value!r}")
+    return dict(kwargs)
+
+
 def load_zoo_entry(path: str | Path, env_id: str) -> dict[str, Any]:
-    """The entry of ``env_id`` as {"ppo": {...PPO_DEFAULTS keys}, "env_kwargs", "n_envs", "n_timesteps"}."""
+    """The entry of ``env_id`` as {"ppo": {...PPO_DEFAULTS keys}, "env_kwargs", "n_envs", "n_timesteps"}, and
+    "distill" (the keyword arguments of its :data:`DISTILL_CALLBACK`) when it has one."""
     import yaml
 
     from .ppo import PPO_DEFAULTS
@@ -61,6 +76,8 @@ def load_zoo_entry(path: str | Path, env_id: str) -> dict[str, Any]:
     if not isinstance(env_kwargs, dict):
         raise ValueError(f"{where}: env_kwargs must be a mapping of environment settings")
     out: dict[str, Any] = {"ppo": ppo, "env_kwargs": dict(env_kwargs)}
+    if entry.get("callback") is not None:
+        out["distill"] = _zoo_callback(entry["callback"], where)
     for k in ("n_envs", "n_timesteps"):
         if k in entry:
             v = entry[k]

@@ -139,3 +139,55 @@ def test_the_own_learner_loop_of_the_docs_runs(tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     losses = [float(line.rsplit(" ", 1)[1]) for line in r.stdout.splitlines() if line.startswith("round ")]
     assert len(losses) == 3 and all(0 <= v < 0.1 for v in losses), r.stdout
+
+
+def test_the_zoo_entry_is_the_distillation_recipe_for_gear_env_train_too(tmp_path):
+    """agents/hyperparams/ppo.yml's GearSpeedDemand-v0 entry names agents.distill.DistillCallback; gear-env train
+    --hyperparams turns it into --distill 12 (distillation only); any other callback is refused."""
+    from agents.hyperparams import load_zoo_entry
+    from gear_env.cli.train import add_arguments, options_from_args
+
+    conf = ROOT / "agents" / "hyperparams" / "ppo.yml"
+    assert load_zoo_entry(conf, ENV)["distill"] == {"iterations": 12}
+    import argparse
+
+    p = argparse.ArgumentParser()
+    add_arguments(p)
+    opts = options_from_args(p.parse_args(["--out", str(tmp_path / "r"), "--env", ENV, "--hyperparams", str(conf)]))
+    assert (opts.distill, opts.timesteps, opts.ppo["net_arch"]) == (12, 0, [128, 128])
+    bad = tmp_path / "bad.yml"
+    bad.write_text(f"{ENV}:\n  callback: stable_baselines3.common.callbacks.CheckpointCallback\n")
+    with pytest.raises(ValueError, match="runs only agents.distill.DistillCallback"):
+        load_zoo_entry(bad, ENV)
+
+
+@pytest.mark.slow
+def test_rl_zoo_trains_the_distillation_through_the_callback(tmp_path):
+    """rl_zoo3.train with the DistillCallback (2 rounds of 3 episodes): the saved model is the distilled actor."""
+    conf = tmp_path / "tiny.yml"
+    conf.write_text(f"""{ENV}:
+  n_envs: 2
+  n_timesteps: 4096
+  policy: 'MlpPolicy'
+  normalize: true
+  n_steps: 64
+  batch_size: 64
+  policy_kwargs: "dict(log_std_init=-1.5, net_arch=[32, 32])"
+  callback:
+    - agents.distill.DistillCallback:
+        iterations: 2
+        episodes: 3
+        eval_episodes: 2
+""")
+    r = subprocess.run(
+        [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", ENV, "--gym-packages", "gear_env",
+         "--conf-file", str(conf), "--device", "cpu", "--seed", "0", "--eval-freq", "-1", "-f", str(tmp_path / "logs")],
+        capture_output=True, text=True, cwd=tmp_path, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"},
+        timeout=900,
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "[distill] done: 600 environment steps" in r.stdout and "[distill] kept round" in r.stdout
+    from stable_baselines3 import PPO
+
+    model = PPO.load(str(tmp_path / "logs" / "ppo" / f"{ENV}_1" / f"{ENV}.zip"), device="cpu")
+    assert model.num_timesteps == 602  # 600 distilled + the one step (2 envs) at which it stopped: no PPO update

@@ -176,11 +176,13 @@ def options_from_args(args: argparse.Namespace) -> Any:
     env_id = args.env_id or GEAR_ENV_ID
     timesteps, num_envs_arg = args.timesteps, args.num_envs
     zoo_ppo: dict[str, Any] = {}
+    zoo_distill: dict[str, Any] = {}
     if getattr(args, "hyperparams", None):
         from agents.hyperparams import load_zoo_entry
 
         zoo = load_zoo_entry(args.hyperparams, env_id)
         zoo_ppo = zoo["ppo"]
+        zoo_distill = dict(zoo.get("distill", {}))
         env_cfg = {**zoo["env_kwargs"], **env_cfg}
         timesteps = zoo.get("n_timesteps") if timesteps is None else timesteps
         num_envs_arg = zoo.get("n_envs") if num_envs_arg is None else num_envs_arg
@@ -195,6 +197,16 @@ def options_from_args(args: argparse.Namespace) -> Any:
         ppo = {**dict(stored.get("ppo", {})), **ppo}  # stored hyper-parameters, explicit --ppo on top (checked)
     distill = int(getattr(args, "distill", 0) or 0)
     distill_params = _kv(getattr(args, "distill_set", []) or [], "--distill-set")
+    if zoo_distill and not distill:  # the zoo entry's DistillCallback: the same distillation
+        distill = zoo_distill.pop("iterations", 12)
+        stops = zoo_distill.pop("stop", True)
+        zoo_distill.pop("eval_episodes", None)
+        zoo_distill.pop("verbose", None)
+        distill_params = {**zoo_distill, **distill_params}
+        if stops and args.timesteps is None:
+            timesteps = None  # distillation only, as the callback's stop=True
+        elif not stops and timesteps is None:
+            timesteps = 700_000
     if args.resume:
         stored_distill = dict(RunFolder(args.out).read_config().get("distill", {}))
         distill = int(stored_distill.pop("iterations", 0))  # done already: resuming continues with PPO
