@@ -21,6 +21,13 @@ FAST = {"steps_per_period": 32, "periods_per_step": 8, "max_steps": 16, "warmup_
 ENV = "GearSpeedDemand-v0"
 
 
+def _env() -> dict[str, str]:
+    """The test's environment (NUMBA_CACHE_DIR included: the subprocess loads the compiled kernels) + the repo."""
+    import os
+
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
+
+
 def _opts(out: Path, **kw) -> TrainOptions:
     base = dict(out=str(out), env_id=ENV, env_config=FAST, timesteps=0, num_envs=2, eval_episodes=2, distill=3,
                 distill_params={"episodes": 6, "epochs": 30}, progress_bar=False, tensorboard=False, verbose=0,
@@ -82,7 +89,7 @@ def test_the_student_learns_the_teacher_and_the_run_is_ordinary(tmp_path):
     r = subprocess.run(
         [sys.executable, "-m", "gear_env", "evaluate", "--env", ENV, "--policy", str(out), "--episodes", "2",
          "--seed", "800000", "--config", str(out / "env_config.json")],
-        capture_output=True, text=True, cwd=tmp_path, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"},
+        capture_output=True, text=True, cwd=tmp_path, env=_env(),
     )  # fmt: skip
     assert r.returncode == 0, r.stderr
 
@@ -121,7 +128,7 @@ def test_cli_refuses_an_unknown_setting_before_any_work(tmp_path):
     r = subprocess.run(
         [sys.executable, "-m", "gear_env", "train", "--env", ENV, "--out", str(tmp_path / "x"), "--distill", "2",
          "--distill-set", "epocs=3"],
-        capture_output=True, text=True, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"},
+        capture_output=True, text=True, env=_env(),
     )  # fmt: skip
     assert r.returncode == 2 and "unknown distillation setting(s) ['epocs']" in r.stderr, r.stderr
     assert not (tmp_path / "x").exists()
@@ -135,7 +142,7 @@ def test_the_own_learner_loop_of_the_docs_runs(tmp_path):
     script = tmp_path / "own_loop.py"
     script.write_text(block)
     r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, cwd=tmp_path,
-                       env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"}, timeout=600)  # fmt: skip
+                       env=_env(), timeout=600)  # fmt: skip
     assert r.returncode == 0, r.stderr[-2000:]
     losses = [float(line.rsplit(" ", 1)[1]) for line in r.stdout.splitlines() if line.startswith("round ")]
     assert len(losses) == 3 and all(0 <= v < 0.1 for v in losses), r.stdout
@@ -182,7 +189,7 @@ def test_rl_zoo_trains_the_distillation_through_the_callback(tmp_path):
     r = subprocess.run(
         [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", ENV, "--gym-packages", "gear_env",
          "--conf-file", str(conf), "--device", "cpu", "--seed", "0", "--eval-freq", "-1", "-f", str(tmp_path / "logs")],
-        capture_output=True, text=True, cwd=tmp_path, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"},
+        capture_output=True, text=True, cwd=tmp_path, env=_env(),
         timeout=900,
     )  # fmt: skip
     assert r.returncode == 0, r.stderr[-3000:]
