@@ -37,30 +37,7 @@ from typing import Any
 
 import numpy as np
 
-DISTILL_DEFAULTS: dict[str, Any] = {
-    "episodes": 100, "epochs": 20, "learning_rate": 1e-3, "batch_size": 256, "final_lr_fraction": 1.0,
-}  # fmt: skip
-"""Defaults of the distillation (per iteration: ``episodes`` rollouts, then ``epochs`` passes over all labels,
-the learning rate going linearly from ``learning_rate`` to ``final_lr_fraction`` x ``learning_rate``)."""
-MAX_ITERATIONS = 1_000
-MAX_EPISODES = 100_000
-
-
-def check_distill(iterations: Any, params: dict[str, Any]) -> None:
-    """ValueError naming the field unless ``iterations`` and ``params`` (``DISTILL_DEFAULTS`` keys) are valid."""
-    if isinstance(iterations, bool) or not isinstance(iterations, int) or not 0 <= iterations <= MAX_ITERATIONS:
-        raise ValueError(f"distill (DAgger iterations) must be an integer in [0, {MAX_ITERATIONS}], got {iterations!r}")
-    unknown = sorted(set(params) - set(DISTILL_DEFAULTS))
-    if unknown:
-        raise ValueError(f"unknown distillation setting(s) {unknown}; valid: {sorted(DISTILL_DEFAULTS)}")
-    for k, lo, hi in (("episodes", 1, MAX_EPISODES), ("epochs", 1, 10_000), ("batch_size", 1, 1_000_000)):
-        v = params.get(k, DISTILL_DEFAULTS[k])
-        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-            raise ValueError(f"distill_{k} must be an integer in [{lo}, {hi}], got {v!r}")
-    for k in ("learning_rate", "final_lr_fraction"):
-        v = params.get(k, DISTILL_DEFAULTS[k])
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 < float(v) <= 1.0:
-            raise ValueError(f"distill_{k} must be a number in (0, 1], got {v!r}")
+from .distill_config import DISTILL_DEFAULTS, MAX_EPISODES, MAX_ITERATIONS, check_distill  # noqa: F401  (re-exported)
 
 
 def teacher_for(env_id: str, cfg: Any) -> Any:
@@ -214,7 +191,9 @@ class DistillCallback(_callback_base()):  # type: ignore[misc]
         from stable_baselines3.common.vec_env import VecNormalize
 
         from .envs import config_to_dict, make_sb3_vec_env
-        from .ppo import EVAL_SEED_OFFSET, evaluate_model
+        from .protocol import IN_TRAINING_EVAL_SEEDS
+        from .rollout import run_episodes
+        from .trained import TrainedPolicy
 
         venv = self.model.get_env()
         if not isinstance(venv, VecNormalize):
@@ -227,11 +206,17 @@ class DistillCallback(_callback_base()):  # type: ignore[misc]
 
         def after(it: int, steps: int) -> None:
             self.model.num_timesteps = steps
-            row = evaluate_model(self.model, venv, eval_venv, self.eval_episodes, seed=seed + EVAL_SEED_OFFSET)
+            frozen = copy.deepcopy(venv.obs_rms)  # the evaluation must not move the statistics
+            vn = VecNormalize.__new__(VecNormalize)
+            vn.obs_rms, vn.clip_obs, vn.epsilon, vn.norm_obs = frozen, venv.clip_obs, venv.epsilon, True
+            vn.norm_obs_keys, vn.training, vn.norm_reward = None, False, False
+            eval_venv.seed(seed + IN_TRAINING_EVAL_SEEDS.start)  # gear-env train's evaluation episodes
+            eps = run_episodes(TrainedPolicy(self.model, vn), eval_venv, self.eval_episodes, deterministic=True)
+            ret = float(np.mean([e["return"] for e in eps]))
             if self.verbose:
-                print(f"[distill] round {it + 1}: evaluation return {row['return_mean']:.3f}", flush=True)
-            if row["return_mean"] > best["ret"]:
-                best.update(ret=row["return_mean"], it=it, actor=copy.deepcopy(self.model.policy.state_dict()))
+                print(f"[distill] round {it + 1}: evaluation return {ret:.3f}", flush=True)
+            if ret > best["ret"]:
+                best.update(ret=ret, it=it, actor=copy.deepcopy(self.model.policy.state_dict()))
 
         try:
             self.steps = distill(self.model, venv, env_id, env_config, self.iterations, self.params, seed=seed,

@@ -150,7 +150,7 @@ class TrainOptions:
     distill_params: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        from .distill import check_distill
+        from .distill_config import check_distill
 
         check_distill(self.distill, dict(self.distill_params))
         bounds = {
@@ -473,7 +473,7 @@ def _write_run_config(run: RunFolder, opts: TrainOptions, env_config: dict[str, 
 
 
 def _distill_params(opts: TrainOptions) -> dict[str, Any]:
-    from .distill import DISTILL_DEFAULTS
+    from .distill_config import DISTILL_DEFAULTS
 
     return {**DISTILL_DEFAULTS, **dict(opts.distill_params)}
 

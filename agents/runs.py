@@ -183,7 +183,7 @@ def _check_config(data: Mapping[str, Any], path: str) -> None:
         if "command" in data:
             want_str(data["command"], path, "command", max_len=100_000)
         if "distill" in data:  # the DAgger warm start (agents.distill), recorded for the reader
-            from .distill import DISTILL_DEFAULTS, check_distill
+            from .distill_config import DISTILL_DEFAULTS, check_distill
 
             d = check_keys(data["distill"], ("iterations", *DISTILL_DEFAULTS), path, "distill")
             check_distill(d.get("iterations"), {k: v for k, v in d.items() if k != "iterations"})
