@@ -30,7 +30,6 @@ unchanged.
 
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Callable
 from typing import Any
@@ -91,8 +90,11 @@ def distill(
     steps, k = 0, 0
     mean = var = None
 
+    def normalised(o: np.ndarray) -> np.ndarray:
+        return np.clip((o - mean) / np.sqrt(var + vecnorm.epsilon), -clip, clip)
+
     def student(o: np.ndarray) -> float:
-        z = np.clip((o - mean) / np.sqrt(var + vecnorm.epsilon), -clip, clip)
+        z = normalised(o)
         with torch.no_grad():
             a = _actor_mean(policy, torch.as_tensor(z[None], dtype=torch.float32))
         return float(np.clip(a.numpy()[0, 0], -1.0, 1.0))
@@ -130,8 +132,7 @@ def distill(
                 vecnorm.obs_rms.var = var.copy()
                 vecnorm.obs_rms.count = float(len(x0))
             X = np.concatenate(xs)
-            z = np.clip((X - mean) / np.sqrt(var + vecnorm.epsilon), -clip, clip)
-            Xt = torch.as_tensor(z, dtype=torch.float32)
+            Xt = torch.as_tensor(normalised(X), dtype=torch.float32)
             Yt = torch.as_tensor(np.concatenate(ys)[:, None], dtype=torch.float32)
             policy.set_training_mode(True)
             loss = torch.zeros(())
@@ -155,7 +156,7 @@ def distill(
     finally:
         env.close()
     if verbose and iterations:
-        print(f"[distill] done: {steps:,} environment steps", file=sys.stderr if verbose < 0 else sys.stdout)
+        print(f"[distill] done: {steps:,} environment steps", flush=True)
     return steps
 
 
@@ -192,8 +193,7 @@ class DistillCallback(_callback_base()):  # type: ignore[misc]
 
         from .envs import config_to_dict, make_sb3_vec_env
         from .protocol import IN_TRAINING_EVAL_SEEDS
-        from .rollout import run_episodes
-        from .trained import TrainedPolicy
+        from .trained import evaluate_model
 
         venv = self.model.get_env()
         if not isinstance(venv, VecNormalize):
@@ -206,13 +206,11 @@ class DistillCallback(_callback_base()):  # type: ignore[misc]
 
         def after(it: int, steps: int) -> None:
             self.model.num_timesteps = steps
-            frozen = copy.deepcopy(venv.obs_rms)  # the evaluation must not move the statistics
-            vn = VecNormalize.__new__(VecNormalize)
-            vn.obs_rms, vn.clip_obs, vn.epsilon, vn.norm_obs = frozen, venv.clip_obs, venv.epsilon, True
-            vn.norm_obs_keys, vn.training, vn.norm_reward = None, False, False
-            eval_venv.seed(seed + IN_TRAINING_EVAL_SEEDS.start)  # gear-env train's evaluation episodes
-            eps = run_episodes(TrainedPolicy(self.model, vn), eval_venv, self.eval_episodes, deterministic=True)
-            ret = float(np.mean([e["return"] for e in eps]))
+            # gear-env train's in-training evaluation: the same episodes, the statistics frozen
+            row = evaluate_model(
+                self.model, venv, eval_venv, self.eval_episodes, seed=seed + IN_TRAINING_EVAL_SEEDS.start
+            )
+            ret = row["return_mean"]
             if self.verbose:
                 print(f"[distill] round {it + 1}: evaluation return {ret:.3f}", flush=True)
             if ret > best["ret"]:

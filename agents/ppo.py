@@ -29,12 +29,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from gear_env.io import atomic_write_text
 
 from .envs import GEAR_ENV_ID, config_to_dict, make_config, make_sb3_vec_env
 from .runs import RUN_MARKER, RunFolder, RunFolderError, check_space_compatible, is_run_folder, space_to_dict, versions
+from .trained import evaluate_model
 
 EVAL_SEED_OFFSET = 1_000_003
 """Evaluation episodes during training use seeds seed + EVAL_SEED_OFFSET + i (never training seeds)."""
@@ -231,57 +230,6 @@ def _evaluate_and_record(
 
 def _next_multiple(n: int, freq: int) -> int:
     return (n // freq + 1) * freq if freq else sys.maxsize
-
-
-def evaluate_model(
-    model: Any, train_vecnorm: Any, eval_venv: Any, episodes: int, seed: int | None = None
-) -> dict[str, Any]:
-    """Deterministic evaluation of ``model`` on ``eval_venv`` with the (frozen) observation
-    statistics of ``train_vecnorm``; mean/std of the raw episode return and of the settled omega.
-
-    ``seed`` reseeds the evaluation environments first, so every evaluation sees the same episodes."""
-    from stable_baselines3.common.vec_env import VecNormalize
-
-    from .rollout import run_episodes
-    from .trained import TrainedPolicy
-
-    vn = train_vecnorm if isinstance(train_vecnorm, VecNormalize) else None
-    policy = TrainedPolicy(model, _frozen_copy(vn) if vn is not None else None)
-    if seed is not None:
-        eval_venv.seed(int(seed))
-    eps = run_episodes(policy, eval_venv, episodes, deterministic=True)
-    rets = np.array([e["return"] for e in eps])
-    row: dict[str, Any] = {
-        "timesteps": int(model.num_timesteps),
-        "return_mean": float(rets.mean()),
-        "return_std": float(rets.std()),
-        "episodes": len(eps),
-    }
-    so = [e["settled_omega"] for e in eps if e["settled_omega"] is not None]
-    if so:
-        row["settled_omega_mean"] = float(np.mean(so))
-        row["settled_omega_std"] = float(np.std(so))
-    cf = [e["chaotic_fraction"] for e in eps if e["chaotic_fraction"] is not None]
-    if cf:
-        row["chaotic_fraction_mean"] = float(np.mean(cf))
-    return row
-
-
-def _frozen_copy(vn: Any) -> Any:
-    """A detached copy of the observation statistics of a VecNormalize (not updated by evaluation)."""
-    import copy
-
-    from stable_baselines3.common.vec_env import VecNormalize
-
-    c = VecNormalize.__new__(VecNormalize)
-    c.obs_rms = copy.deepcopy(vn.obs_rms)
-    c.clip_obs = vn.clip_obs
-    c.epsilon = vn.epsilon
-    c.norm_obs = vn.norm_obs
-    c.norm_obs_keys = getattr(vn, "norm_obs_keys", None)
-    c.training = False
-    c.norm_reward = False
-    return c
 
 
 def _summary(state: dict[str, Any], steps: int, opts: TrainOptions) -> dict[str, Any]:
@@ -611,7 +559,7 @@ def _train_locked(run: RunFolder, opts: TrainOptions, env_config: dict[str, Any]
         cb = _callbacks(run, opts, eval_venv, state)
         if start.model_path is None and opts.distill:
             steps = _distill(model, venv, run, opts, env_config, eval_venv, state)
-            state["total"] = max(steps, rollout_total(opts, steps)) if opts.timesteps > steps else steps
+            state["total"] = rollout_total(opts, steps) if opts.timesteps > steps else steps
         if state["total"] > model.num_timesteps:
             _learn(model, venv, run, opts, start, state, cb)
         return _finish(model, venv, run, opts, state, cb)

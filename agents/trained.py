@@ -457,4 +457,61 @@ def load_trained_policy(
     return TrainedPolicy(model, vecnorm, name=name or Path(run_dir).name, run_config=cfg, action_adapter=adapter)
 
 
-__all__ = ["ActionAdapter", "TrainedPolicy", "load_ppo_model", "load_trained_policy", "load_vecnormalize"]
+def evaluate_model(
+    model: Any, train_vecnorm: Any, eval_venv: Any, episodes: int, seed: int | None = None
+) -> dict[str, Any]:
+    """Deterministic evaluation of ``model`` on ``eval_venv`` with the (frozen) observation
+    statistics of ``train_vecnorm``; mean/std of the raw episode return and of the settled omega.
+
+    ``seed`` reseeds the evaluation environments first, so every evaluation sees the same episodes."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from .rollout import run_episodes
+
+    vn = train_vecnorm if isinstance(train_vecnorm, VecNormalize) else None
+    policy = TrainedPolicy(model, _frozen_copy(vn) if vn is not None else None)
+    if seed is not None:
+        eval_venv.seed(int(seed))
+    eps = run_episodes(policy, eval_venv, episodes, deterministic=True)
+    rets = np.array([e["return"] for e in eps])
+    row: dict[str, Any] = {
+        "timesteps": int(model.num_timesteps),
+        "return_mean": float(rets.mean()),
+        "return_std": float(rets.std()),
+        "episodes": len(eps),
+    }
+    so = [e["settled_omega"] for e in eps if e["settled_omega"] is not None]
+    if so:
+        row["settled_omega_mean"] = float(np.mean(so))
+        row["settled_omega_std"] = float(np.std(so))
+    cf = [e["chaotic_fraction"] for e in eps if e["chaotic_fraction"] is not None]
+    if cf:
+        row["chaotic_fraction_mean"] = float(np.mean(cf))
+    return row
+
+
+def _frozen_copy(vn: Any) -> Any:
+    """A detached copy of the observation statistics of a VecNormalize (not updated by evaluation)."""
+    import copy
+
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    c = VecNormalize.__new__(VecNormalize)
+    c.obs_rms = copy.deepcopy(vn.obs_rms)
+    c.clip_obs = vn.clip_obs
+    c.epsilon = vn.epsilon
+    c.norm_obs = vn.norm_obs
+    c.norm_obs_keys = getattr(vn, "norm_obs_keys", None)
+    c.training = False
+    c.norm_reward = False
+    return c
+
+
+__all__ = [
+    "ActionAdapter",
+    "TrainedPolicy",
+    "evaluate_model",
+    "load_ppo_model",
+    "load_trained_policy",
+    "load_vecnormalize",
+]

@@ -114,34 +114,39 @@ def test_demand_baselines_are_deterministic_and_beat_fixed_best(demand_cfg):
         assert R[s].sum() > R["fixed-best"].sum(), (s, R[s], R["fixed-best"])
 
 
+def _validation_gap_share(model_zip, demand_cfg) -> float:
+    """Share of the fixed-best -> oracle gap the model closes on the 50 validation episodes."""
+    from agents.registry import resolve_policy
+    from gear_env.evaluation import evaluate_policies
+
+    specs = ("oracle", "fixed-best", str(model_zip))
+    pols = {s: resolve_policy(s, demand_cfg, env_id=ENV) for s in specs}
+    rep = evaluate_policies(pols, demand_cfg, episodes=len(P.VALIDATION_SEEDS), seed=P.VALIDATION_SEEDS.start)
+    R = [np.array([e.ret for e in rep.episodes[s]]) for s in specs]
+    return P.gap_closed(R[2], R[1], R[0])[0]
+
+
 @pytest.mark.slow
 def test_demand_recipe_learns_on_validation_episodes(tmp_path, demand_cfg):
     """The PPO recipe of GearSpeedDemand-v0 before the distillation (ppo.yml's PPO values, [64, 64]), trained
-    briefly (250k steps, training seed 0), closes >= 30 % of
-    the fixed-best -> oracle gap on the 50 validation episodes (its best in-training evaluation; no timing). The
-    same seed's best checkpoint of a 400k run (at 200k steps) closed 55.7 % there (docs/TRAINING.md); on the
-    first 20 validation episodes alone only 25 %, so all 50 are used."""
+    briefly (250k steps, training seed 0), closes >= 30 % of the fixed-best -> oracle gap on the 50 validation
+    episodes (its best in-training evaluation; no timing). The same seed's best checkpoint of a 400k run (at 200k
+    steps) closed 55.7 % there (docs/TRAINING.md); on the first 20 validation episodes alone only 25 %, so all 50
+    are used."""
     from pathlib import Path
 
     from agents.hyperparams import load_zoo_entry
     from agents.ppo import TrainOptions, train
-    from agents.registry import resolve_policy
-    from gear_env.evaluation import evaluate_policies
 
     entry = load_zoo_entry(Path(__file__).resolve().parents[1] / "agents" / "hyperparams" / "ppo.yml", ENV)
     out = tmp_path / "run"
     opts = TrainOptions(
         out=str(out), env_id=ENV, env_config=entry["env_kwargs"], timesteps=250_000, num_envs=entry["n_envs"],
         seed=P.TRAIN_RUN_SEEDS[0], eval_freq=50_000, checkpoint_freq=0, ppo={**entry["ppo"], "net_arch": [64, 64]},
-        progress_bar=False,
-        tensorboard=False, verbose=0,
+        progress_bar=False, tensorboard=False, verbose=0,
     )  # fmt: skip
     train(opts)
-    specs = ("oracle", "fixed-best", str(out / "best_model.zip"))
-    pols = {s: resolve_policy(s, demand_cfg, env_id=ENV) for s in specs}
-    rep = evaluate_policies(pols, demand_cfg, episodes=len(P.VALIDATION_SEEDS), seed=P.VALIDATION_SEEDS.start)
-    R = [np.array([e.ret for e in rep.episodes[s]]) for s in specs]
-    share = P.gap_closed(R[2], R[1], R[0])[0]
+    share = _validation_gap_share(out / "best_model.zip", demand_cfg)
     assert share >= 0.3, f"the recipe closed {100 * share:.1f} % of the gap after 250k steps"
 
 
@@ -182,16 +187,10 @@ def test_distillation_recipe_learns_on_validation_episodes(tmp_path, demand_cfg)
     (4 of its 12 rounds, training seed 0), closes >= 70 % of the fixed-best -> oracle gap on the 50 validation
     episodes (its best round; no timing). The full recipe's seed 0 closed 91.6 % there."""
     from agents.ppo import TrainOptions, train
-    from agents.registry import resolve_policy
-    from gear_env.evaluation import evaluate_policies
 
     out = tmp_path / "run"
     train(TrainOptions(out=str(out), env_id=ENV, timesteps=0, seed=P.TRAIN_RUN_SEEDS[0], distill=4,
                        eval_episodes=20, checkpoint_freq=0, ppo={"net_arch": [128, 128]}, progress_bar=False,
                        tensorboard=False, verbose=0))  # fmt: skip
-    specs = ("oracle", "fixed-best", str(out / "best_model.zip"))
-    pols = {s: resolve_policy(s, demand_cfg, env_id=ENV) for s in specs}
-    rep = evaluate_policies(pols, demand_cfg, episodes=len(P.VALIDATION_SEEDS), seed=P.VALIDATION_SEEDS.start)
-    R = [np.array([e.ret for e in rep.episodes[s]]) for s in specs]
-    share = P.gap_closed(R[2], R[1], R[0])[0]
+    share = _validation_gap_share(out / "best_model.zip", demand_cfg)
     assert share >= 0.7, f"4 rounds of distillation closed {100 * share:.1f} % of the gap"
