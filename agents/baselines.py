@@ -51,6 +51,8 @@ class ScriptedPolicy(BasePolicy):
         self.reference_filter = float(cp.get("reference_filter", 1.0))
         self.max_steps = int(cp["max_steps"])
         self.has_demand = bool(cp.get("has_demand", False))
+        self.action_delay = int(cp.get("action_delay", 0))
+        self.sensor_noise = float(cp.get("sensor_noise", 0.0))
 
     # ---- conversions ----------------------------------------------------------------------------
     def omega_from_obs(self, obs: np.ndarray) -> np.ndarray:
@@ -80,12 +82,41 @@ class ScriptedPolicy(BasePolicy):
         n = obs.shape[0]
         state = self._state(state, n, episode_start)
         omega = self.omega_from_obs(obs)
+        if not self.action_delay:
+            target, state = self._targets(omega, obs, state)
+            return self.action_to(omega, target).astype(np.float32).reshape(n, 1), state
+        # actuator dead time (a Smith predictor): the actions already sent drive the next steps, so the
+        # target is decided from what is sensed now and commanded from the omega those actions will leave
+        fresh = state["sent"] == 0
+        if fresh.any():  # the drive holds the initial speed until the first action arrives
+            state["pending"][fresh] = self.action_to(omega[fresh], omega[fresh])[:, None]
+        ahead = self.omega_after(omega, state["pending"])
+        state["omega_ahead"] = ahead
         target, state = self._targets(omega, obs, state)
-        return self.action_to(omega, target).astype(np.float32).reshape(n, 1), state
+        a = self.action_to(ahead, target).astype(np.float32).astype(float)  # as the environment receives it
+        state["pending"] = np.concatenate([state["pending"][:, 1:], a[:, None]], axis=1)
+        state["sent"] = state["sent"] + 1
+        return a.astype(np.float32).reshape(n, 1), state
+
+    def omega_after(self, omega: np.ndarray, actions: np.ndarray) -> np.ndarray:
+        """Omega (n,) after the actions (n, k) drive k steps from ``omega``, as the environment decodes them
+        (delta or target mode, reference filter, rate limit, range)."""
+        w = np.asarray(omega, float).copy()
+        lo, hi, dmax = self.omega_min, self.omega_max, self.max_domega
+        for a in np.clip(np.asarray(actions, float), -1.0, 1.0).T:
+            if self.action_mode == "delta":
+                t = w + a * dmax
+            else:
+                t = lo + 0.5 * (a + 1.0) * (hi - lo)
+                if self.reference_filter != 1.0:
+                    t = w + self.reference_filter * (t - w)
+                t = np.clip(t, w - dmax, w + dmax)
+            w = np.clip(t, lo, hi)
+        return w
 
     def _state(self, state: Any, n: int, episode_start: np.ndarray | None) -> Any:
         """Fresh state when None or of another batch size; reset rows where an episode starts."""
-        fresh = self.initial_state(n)
+        fresh = self._initial(n)
         if state is None or not isinstance(state, dict) or len(next(iter(state.values()), [])) != n:
             return fresh
         if episode_start is not None:
@@ -99,6 +130,14 @@ class ScriptedPolicy(BasePolicy):
     def initial_state(self, n: int) -> dict[str, np.ndarray]:
         """Per-environment memory at the start of an episode (subclasses extend it)."""
         return {"t": np.zeros(n, np.int64)}
+
+    def _initial(self, n: int) -> dict[str, np.ndarray]:
+        """:meth:`initial_state`; with an actuator dead time also the actions on their way to the drive
+        (``pending``), how many were sent, and the omega they will leave (``omega_ahead``)."""
+        st = self.initial_state(n)
+        if self.action_delay:
+            st.update(pending=np.zeros((n, self.action_delay)), sent=np.zeros(n, np.int64), omega_ahead=np.zeros(n))
+        return st
 
     def _targets(self, omega: np.ndarray, obs: np.ndarray, state: dict) -> tuple[np.ndarray, dict]:
         raise NotImplementedError

@@ -165,6 +165,56 @@ class IdentifyFollow(SensorServo):
         return np.maximum(target, self.floor), state
 
 
+class FilteredFollow(SensorServo):
+    """For noisy sensors (``GearSpeedDemandHard-v0``): the pair's q = rho / h(omega) sensed on every clean step
+    is averaged (a running mean over the first ``window`` clean steps, then an exponential average with weight
+    1/``window``: it tracks a pair that changes), a troubled step multiplies the estimate by exp(``penalty``),
+    and the script follows the demand up to the hold speed of the estimate, at the full rate. Averaging q
+    rather than log q keeps the mean unbiased under the additive sensor noise, which for a precise pair is
+    larger than the reading itself."""
+
+    name = "filtered-follow"
+
+    def __init__(
+        self, config: Any = None, window: int = 8, shift: float = 0.0, floor: float = FLOOR, penalty: float = 0.1
+    ):
+        super().__init__(config, shift, floor, 1.0)
+        if isinstance(window, bool) or not isinstance(window, (int, np.integer)) or not 1 <= window <= 1000:
+            raise ValueError(f"filtered-follow:N needs a window N in [1, 1000] steps, got {window!r}")
+        self.window, self.penalty = int(window), float(penalty)
+        self.margin = 2.0 * self.sensor_noise
+        self.name = f"filtered-follow:{self.window}" if window != 8 else "filtered-follow"
+
+    def initial_state(self, n: int) -> dict[str, np.ndarray]:
+        return {"t": np.zeros(n, np.int64), "q": np.zeros(n), "count": np.zeros(n)}
+
+    def trouble(self, obs: np.ndarray) -> np.ndarray:
+        """Troubled steps, with the noisy sensors' thresholds raised by twice the noise (impacts are counted
+        events: exact)."""
+        from gear_env.env_terms import TROUBLE_CONTACT
+
+        m = self.margin
+        impacts = obs[:, OBS_DRIVE_IMPACTS] + obs[:, OBS_BACK_IMPACTS]
+        return (obs[:, OBS_CONTACT] > TROUBLE_CONTACT + m) | (impacts > 0) | (obs[:, OBS_DEFECT] > TROUBLE_DEFECT + m)
+
+    def _targets(self, omega, obs, state):
+        state["t"] = state["t"] + 1
+        trouble = self.trouble(obs)
+        w = omega - 0.5 * obs[:, OBS_DOMEGA] * self.max_domega
+        known = (w >= H_OMEGAS[0]) & (w <= H_OMEGAS[-1])
+        sensed = np.expm1(obs[:, OBS_FORCE_RMS].astype(float)) / np.exp(np.interp(w, H_OMEGAS, LOG_H))
+        use = ~trouble & known
+        count = np.where(use, state["count"] + 1.0, state["count"])
+        k = 1.0 / np.minimum(np.maximum(count, 1.0), self.window)
+        q = np.where(use, state["q"] + k * (sensed - state["q"]), state["q"])
+        q = np.where(trouble & (omega >= self.floor) & (count > 0), q * np.exp(self.penalty), q)
+        state["q"], state["count"] = q, count
+        logq = np.where(count > 0, np.log(np.maximum(q, 1e-6)), np.nan)
+        goal = np.minimum(self.edge(logq), _demand(self, obs))
+        target = np.where(trouble, np.minimum(goal, omega - self.max_domega), goal)
+        return np.maximum(target, self.floor), state
+
+
 class DelayedOracle(ScriptedPolicy):
     """Fixed-best for the first ``k`` steps, then the oracle that knows the pair (``delayed-oracle:K``)."""
 
@@ -188,4 +238,4 @@ class DelayedOracle(ScriptedPolicy):
         return src._targets(omega, obs, state)
 
 
-__all__ = ["DelayedOracle", "IdentifyFollow", "SensorServo", "force_shape"]
+__all__ = ["DelayedOracle", "FilteredFollow", "IdentifyFollow", "SensorServo", "force_shape"]

@@ -119,6 +119,8 @@ def distill(
                     obs_it.append(obs.astype(np.float64))
                     lab_it.append(float(label[0, 0]))
                     act = float(label[0, 0]) if it == 0 else student(obs.astype(np.float64))
+                    if isinstance(state, dict) and "pending" in state:  # dead time: the student's action is
+                        state["pending"][:, -1] = act  # the one on its way, not the teacher's label
                     obs, _r, term, trunc, _info = env.step(np.array([act], np.float32))
                     steps += 1
                     if term or trunc:

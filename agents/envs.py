@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 GEAR_ENV_ID = "GearSpeed-v0"
-GEAR_ENV_IDS = ("GearSpeed-v0", "GearSpeed-v1", "GearSpeedDemand-v0")
+GEAR_ENV_IDS = ("GearSpeed-v0", "GearSpeed-v1", "GearSpeedDemand-v0", "GearSpeedDemandHard-v0")
 """The registered gear tasks (``gear_env.tasks.TASK_SETTINGS``): one config class, different settings."""
 
 
@@ -143,7 +143,9 @@ def control_parameters(cfg: Any) -> dict[str, Any]:
     Returns ``omega_min``, ``omega_max`` (observation[0] maps [omega_min, omega_max] linearly to
     [-1, 1]), ``max_domega`` (largest change of omega per step; action 1 in delta mode),
     ``action_mode`` ("delta" or "target"), ``reference_filter`` (target mode: fraction of the set-point
-    error closed per step before the rate limit) and ``max_steps`` (episode length)."""
+    error closed per step before the rate limit), ``max_steps`` (episode length) and ``action_delay``
+    (actuator dead time in steps: an action drives the step ``action_delay`` steps later) and
+    ``sensor_noise`` (std of the noise on the continuous sensor features)."""
     c = make_config(GEAR_ENV_ID, cfg)
     return {
         "omega_min": float(c.omega_min),
@@ -153,6 +155,8 @@ def control_parameters(cfg: Any) -> dict[str, Any]:
         "reference_filter": float(c.reference_filter),
         "max_steps": int(c.max_steps),
         "has_demand": c.demand is not None,
+        "action_delay": int(getattr(c, "action_delay", 0)),
+        "sensor_noise": float(getattr(c, "sensor_noise", 0.0)),
     }
 
 

@@ -41,13 +41,18 @@ FAMILY_SAMPLE_SEED = 20261202
 
 def _plain(cfg: Any) -> Any:
     """The config of one fixed plant (no family, duty cycle or demand: what the steady map measures)."""
-    return cfg.replace(plant_family=None, duty_cycle=None, demand=None, throughput="all")
+    return cfg.replace(plant_family=None, duty_cycle=None, wear=None, demand=None, throughput="all")
 
 
 def cost_map(cfg: Any, params: Any) -> tuple[np.ndarray, np.ndarray]:
     """(omegas, steady cost per step) of the plant ``params``: the steady reward minus the throughput term."""
     w, r = reward_map(_plain(cfg).replace(params=params))
     return w, r - cfg.w_throughput * w / cfg.omega_max
+
+
+def worn(factors: dict[str, float], wear: float) -> dict[str, float]:
+    """Family factors with the transmission error times ``wear`` (a :class:`gear_env.tasks.WearChange`)."""
+    return {**factors, "e_m1": factors["e_m1"] * wear}
 
 
 def family_sample(cfg: Any) -> list[dict[str, float]]:
@@ -128,19 +133,19 @@ class EpisodeOracle(ScriptedPolicy):
     def maps_for(self, episode: Any, knows: str) -> tuple[np.ndarray, np.ndarray]:
         """(omegas, (T, m) cost map per step) for the episode under the given knowledge."""
         cfg = self.cfg
-        levels = np.asarray(episode.load_factor, float)
-        cache: dict[float, np.ndarray] = {}
+        conds = [tuple(c) for c in episode.conditions().tolist()]  # (duty level, e_m1 wear) of every step
+        cache: dict[tuple[float, float], np.ndarray] = {}
         w = None
-        for lv in np.unique(levels):
+        for lv, wear in sorted(set(conds)):
             if knows == "plant":
-                w, c = cost_map(cfg, episode.params_at_level(lv))
+                w, c = cost_map(cfg, episode.params_at_level(lv, wear))
             elif knows == "nominal":
-                w, c = cost_map(cfg, cfg.plant_family.plant(cfg.params, {"load": 1.0, "e_m1": 1.0}, lv))
+                w, c = cost_map(cfg, cfg.plant_family.plant(cfg.params, {"load": 1.0, "e_m1": wear}, lv))
             else:
-                cs = [cost_map(cfg, cfg.plant_family.plant(cfg.params, f, lv)) for f in family_sample(cfg)]
+                cs = [cost_map(cfg, cfg.plant_family.plant(cfg.params, worn(f, wear), lv)) for f in family_sample(cfg)]
                 w, c = cs[0][0], np.mean([x[1] for x in cs], axis=0)
-            cache[float(lv)] = c
-        return w, np.array([cache[float(lv)] for lv in levels])
+            cache[(lv, wear)] = c
+        return w, np.array([cache[c] for c in conds])
 
     def observe_episode(self, episode: Any) -> None:
         """Plan for a new episode (called at reset by the evaluation)."""
@@ -155,7 +160,11 @@ class EpisodeOracle(ScriptedPolicy):
             )
         if len(omega) != 1:
             raise ValueError(f"policy {self.name!r} plans one episode at a time (got a batch of {len(omega)})")
-        target = np.array([self.planner.best_next(float(omega[0]), int(state["t"][0]))])
+        t = int(state["t"][0])
+        if self.action_delay:  # plan the step the action will drive, from the omega the sent actions leave
+            target = np.array([self.planner.best_next(float(state["omega_ahead"][0]), t + self.action_delay)])
+        else:
+            target = np.array([self.planner.best_next(float(omega[0]), t)])
         state["t"] = state["t"] + 1
         return target, state
 
@@ -180,19 +189,20 @@ class FixedBest(EpisodeOracle):
         start = float(episode.initial_omega if omega0 is None else omega0)
         paths = {k: p.path(start) for k, p in plans.items()}
         score = {k: 0.0 for k in plans}
-        levels = np.asarray(episode.load_factor, float)
+        conds = [tuple(c) for c in episode.conditions().tolist()]
         for f in family_sample(cfg):
-            by_level = {
-                float(lv): cost_map(cfg, cfg.plant_family.plant(cfg.params, f, lv))[1] for lv in np.unique(levels)
+            by_cond = {
+                (lv, wear): cost_map(cfg, cfg.plant_family.plant(cfg.params, worn(f, wear), lv))[1]
+                for lv, wear in set(conds)
             }
             judge = EpisodePlanner.__new__(EpisodePlanner)  # maps only, no DP needed
             judge.cfg, judge.lo, judge.hi, judge.dmax = cfg, cfg.omega_min, cfg.omega_max, cfg.max_domega
-            judge.grid, judge.T, judge.demand = w, len(levels), episode.demand
-            judge.cost = np.array([by_level[float(lv)] for lv in levels])
+            judge.grid, judge.T, judge.demand = w, len(conds), episode.demand
+            judge.cost = np.array([by_cond[c] for c in conds])
             for k in plans:
                 score[k] += judge.path_return(paths[k])
         self.choice = max(score, key=score.get)
         self.planner = plans[self.choice]
 
 
-__all__ = ["EpisodeOracle", "EpisodePlanner", "FixedBest", "cost_map", "family_sample"]
+__all__ = ["EpisodeOracle", "EpisodePlanner", "FixedBest", "cost_map", "family_sample", "worn"]

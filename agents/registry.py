@@ -15,6 +15,7 @@ Specs (case-sensitive):
 ``delayed-oracle:K``        (GearSpeedDemand-v0) fixed-best for K steps, then the oracle that knows the pair
 ``identify-follow``         (GearSpeedDemand-v0) sensor-only: identify the pair, follow the demand to its edge
 ``sensor-servo``            (GearSpeedDemand-v0) sensor-only memoryless servo on the sensed force level
+``filtered-follow[:N]``      (GearSpeedDemandHard-v0) sensor-only: the sensed pair averaged over N clean steps
 ==========================  ===========================================================================
 
 The last three are built from ``DEMAND_SCRIPTS`` (name -> factory, help line; agents/demand_scripts.py).
@@ -61,6 +62,18 @@ def _delayed_oracle(arg: str | None, config: Any) -> Any:
     return DelayedOracle(config, int(arg))
 
 
+def _filtered_follow(arg: str | None, config: Any) -> Any:
+    from .demand_scripts import FilteredFollow
+
+    if arg is None:
+        return FilteredFollow(config)
+    if not arg.strip().isdigit():
+        raise ValueError(
+            f"policy spec 'filtered-follow:{arg}': N must be an integer window in steps (filtered-follow:8)"
+        )
+    return FilteredFollow(config, int(arg))
+
+
 def _no_arg(cls_name: str) -> Any:
     def make(arg: str | None, config: Any) -> Any:
         from . import demand_scripts
@@ -83,6 +96,10 @@ DEMAND_SCRIPTS: dict[str, tuple[Any, str]] = {
         "identify the pair from the sensed force, follow the demand to its edge",
     ),
     "sensor-servo": (_no_arg("SensorServo"), "memoryless servo: step towards the edge level of the sensed force"),
+    "filtered-follow": (
+        _filtered_follow,
+        "noisy sensors: average the sensed pair over N clean steps, follow the demand to its edge (filtered-follow:N)",
+    ),
 }
 """The baselines of GearSpeedDemand-v0 (agents/demand_scripts.py): spec name -> (factory(arg, config), help line)."""
 

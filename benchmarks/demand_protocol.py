@@ -1,7 +1,7 @@
 """The Demand tables of docs/RESULTS.md under the evaluation protocol (agents/protocol.py), with CIs.
 
 Run:  python benchmarks/demand_protocol.py --set test [--policy SPEC ...] [--runs RUN_DIR ...]
-                                          [--reference pretrained] [--cache DIR] [--markdown PATH] [--json PATH]
+                                          [--env GearSpeedDemandHard-v0] [--reference pretrained] [--cache DIR] [--markdown PATH] [--json PATH]
       python benchmarks/demand_protocol.py --set validation --runs runs/demand_s0 runs/demand_s1 ... --select
       python benchmarks/demand_protocol.py --calibrate --set seeds:0-119   (the scripts' sensor map, training seeds)
 
@@ -32,6 +32,8 @@ from pathlib import Path
 import numpy as np
 
 ENV_ID = "GearSpeedDemand-v0"
+"""The task of the tables (``--env`` chooses another Demand task)."""
+DEMAND_TASKS = ("GearSpeedDemand-v0", "GearSpeedDemandHard-v0")
 BASELINES = ("oracle", "fixed-best", "delayed-oracle:10", "identify-follow", "sensor-servo", "pretrained")
 COST_TERMS = ("reward_chaos", "reward_contact", "reward_impact", "reward_vibration", "reward_rate", "reward_divergence")
 
@@ -178,6 +180,7 @@ def table(results: dict[str, list[dict]], reference: str | None) -> tuple[str, d
 
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--env", default=DEMAND_TASKS[0], choices=DEMAND_TASKS, help="the task (default v0)")
     ap.add_argument("--set", default="test", help="seed set: validation, test or seeds:A-B (default test)")
     ap.add_argument("--policy", action="append", default=[], help="policy spec (default: the baselines)")
     ap.add_argument(
@@ -195,6 +198,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--markdown", metavar="PATH")
     ap.add_argument("--json", metavar="PATH")
     args = ap.parse_args(argv)
+    globals()["ENV_ID"] = args.env
 
     from agents.protocol import gap_scores, iqm_ci
     from gear_env.env_config import task_config
@@ -204,7 +208,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(calibrate(task_config(ENV_ID), parse_seed_set(args.set)))
         return 0
     seeds = parse_seed_set(args.set)
-    label = args.set.replace(":", "_")
+    label = args.set.replace(":", "_") + ("" if ENV_ID == DEMAND_TASKS[0] else f"_{ENV_ID}")
     cfg = task_config(ENV_ID)
     cache = Path(args.cache) if args.cache else None
     specs = list(dict.fromkeys(["oracle", "fixed-best", *(args.policy or BASELINES[2:])]))

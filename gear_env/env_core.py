@@ -37,6 +37,8 @@ LANES_MIN = 2
 
 TERMS = ET.task("GearSpeed-v0")
 """The ``GearSpeed-v0`` entries of :mod:`gear_env.env_terms`."""
+NOISY_SENSORS = ("force_rms", "force_peak", "translation_rms", "defect", "contact_loss")
+"""Observation entries that ``sensor_noise`` perturbs (with their ``prev_`` memory copies)."""
 SENSOR_NAMES = tuple(o.name for o in TERMS.observations if o.when is None)
 """Names of the observation entries present in every configuration."""
 FULL_STATE_NAMES = ("X_p", "Y_p", "X_g", "Y_g", "U", "dX_p", "dY_p", "dX_g", "dY_g", "dU")
@@ -137,12 +139,28 @@ class GearSpeedCore:
         # the episode scenario of every row (gear_env.tasks.Episode: plant, duty cycle, demand), and the
         # demand and load level of every step of it (tables only when they vary)
         self.episodes: list[Any] = [None] * n
-        self._scenario = cfg.plant_family is not None or cfg.duty_cycle is not None or cfg.demand == "random"
+        self._scenario = (
+            cfg.plant_family is not None or cfg.duty_cycle is not None or cfg.demand == "random" or cfg.wear is not None
+        )
         self._dem = np.zeros((n, cfg.max_steps + 2) if cfg.demand is not None else (n, 0))
         if self._demand_pts is not None:
             t = np.arange(cfg.max_steps + 2, dtype=float)
             self._dem[:] = np.interp(t, self._demand_pts[:, 0], self._demand_pts[:, 1])
         self._load = np.ones((n, cfg.max_steps + 1) if cfg.duty_cycle is not None else (n, 0))
+        self._wear = np.ones((n, cfg.max_steps + 1) if cfg.wear is not None else (n, 0))
+        # sensor noise: the observation entries it touches, the entries that carry the previous step's
+        # value of one of them, and every row's table of standard normal draws (one row per step)
+        names = list(self.observation_names)
+        noisy = [k for k in NOISY_SENSORS if k in names] if cfg.sensor_noise > 0 else []
+        self._noise_idx = np.array([names.index(k) for k in noisy], np.int64)
+        prev = [(names.index("prev_" + k), noisy.index(k)) for k in noisy if "prev_" + k in names]
+        self._noise_prev = np.array(prev, np.int64).reshape(-1, 2)
+        self._noise = np.zeros((n, cfg.max_steps + 1, len(noisy)))
+        lo_b, hi_b = terms.observation_bounds(cfg)
+        self._obs_lo, self._obs_hi = lo_b.astype(float), hi_b.astype(float)
+        # actuator dead time: the actions waiting to reach the drive, oldest first
+        self._pending = np.zeros((n, cfg.action_delay))
+        self._pend_obs = np.zeros(n)  # the oldest waiting action of each row (the `pending_action` feature)
         self.X = np.zeros((n, K.NSTATE))
         self.A = np.zeros((n, K.NDOF))
         self.C = np.tile(np.asarray(cfg.params.consts, float), (n, 1))
@@ -302,7 +320,7 @@ class GearSpeedCore:
         EK.post_step(
             rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, self.S, self.hist, self.tr_ref, self.fs,
             self.omega_n, self.steps, self.X, self.ACC, self.I, self._reward_cols, self._cost_cols, self.F,
-            self._obs_cols, self.obs, reward, terminated, truncated,
+            self._obs_cols, self.obs, reward, terminated, truncated, self._pend_obs,
         )  # fmt: skip
         return reward, terminated, truncated
 
@@ -351,13 +369,26 @@ class GearSpeedCore:
                 lo, hi = cfg.demand_range or (cfg.omega_min, cfg.omega_max)
                 self._dem[r, : T + 1] = random_demand(rng, T, lo, hi, cfg.demand_segment_steps)
                 self._dem[r, T + 1] = self._dem[r, T]
+            wear = None
+            if cfg.wear is not None:
+                wear = cfg.wear.draw(rng, T)
+                self._wear[r, :T] = wear
+                self._wear[r, T] = wear[-1]
+            if len(self._noise_idx):
+                self._noise[r] = rng.standard_normal((T + 1, len(self._noise_idx)))
             if self._scenario or cfg.demand is not None:
                 dem = self._dem[r, : T + 1].copy() if cfg.demand is not None else None
                 self.episodes[r] = Episode(
-                    p, factors, np.ones(T) if load is None else load.copy(), dem, float(w_init[j])
-                )
-            self._set_plant(r, p if load is None else self.episodes[r].params_at(0), equilibrium=True)
+                    p, factors, np.ones(T) if load is None else load.copy(), dem, float(w_init[j]),
+                    None if wear is None else wear.copy(),
+                )  # fmt: skip
+            changes = load is not None or wear is not None
+            self._set_plant(r, self.episodes[r].params_at(0) if changes else p, equilibrium=True)
         self.omega[rows] = w_init
+        if cfg.action_delay:  # the drive holds the initial speed until the first action arrives
+            hold = 2.0 * (w_init - cfg.omega_min) / (cfg.omega_max - cfg.omega_min) - 1.0
+            self._pending[rows] = (hold if cfg.action_mode == "target" else np.zeros_like(w_init))[:, None]
+            self._pend_obs[rows] = self._pending[rows, 0]
         self.hist[rows] = 0.0
         self.n_tol[rows] = TOL_N_START  # with `tol`: a fresh episode starts from the same step count
         pps = cfg.periods_per_step
@@ -371,6 +402,26 @@ class GearSpeedCore:
         EK.push_history(rows, pc, w_init, w_init, ok, self.hist)
         ok_all &= ok
         self._post(rows, st, ok_all, elapsed, w_init, w_init, True)
+        self._add_noise(rows, ok_all)
+
+    def _add_noise(self, rows: np.ndarray, fresh: np.ndarray) -> None:
+        """Sensor noise on the observation of the ``rows`` whose observation was just written (``fresh``):
+        the entry of step t gets ``sensor_noise`` times draw t of its column, a ``prev_`` entry draw t - 1
+        (the value the previous observation showed), clipped to the observation bounds."""
+        if not len(self._noise_idx):
+            return
+        sig = self.config.sensor_noise
+        T = self.config.max_steps
+        for r, ok in zip(rows.tolist(), fresh.tolist()):
+            if not ok:
+                continue
+            t = min(int(self.steps[r]), T)
+            o = self.obs[r]
+            z = self._noise[r]
+            for c, k in enumerate(self._noise_idx.tolist()):
+                o[k] = min(max(o[k] + sig * z[t, c], self._obs_lo[k]), self._obs_hi[k])
+            for k, c in self._noise_prev.tolist():  # at the reset the memory copy is the first reading itself
+                o[k] = min(max(o[k] + sig * z[max(t - 1, 0), c], self._obs_lo[k]), self._obs_hi[k])
 
     def _set_plant(self, r: int, p: GearParams, equilibrium: bool = False) -> None:
         """Row ``r`` simulates the gear pair ``p`` from now on (the features' static references follow
@@ -391,11 +442,16 @@ class GearSpeedCore:
 
     def _apply_duty(self, rows: np.ndarray) -> None:
         """Change the load of the rows whose duty cycle steps to a new level in the coming step."""
-        if self.config.duty_cycle is None:
+        cfg = self.config
+        if cfg.duty_cycle is None and cfg.wear is None:
             return
-        T = self.config.max_steps
+        T = cfg.max_steps
+        L, Wr = self._load, self._wear
         for r, t in zip(rows.tolist(), self.steps[rows].tolist()):
-            if 0 < t < T and self._load[r, t] != self._load[r, t - 1]:
+            if 0 < t < T and (
+                (cfg.duty_cycle is not None and L[r, t] != L[r, t - 1])
+                or (cfg.wear is not None and Wr[r, t] != Wr[r, t - 1])
+            ):
                 self._set_plant(r, self.episodes[r].params_at(t))
 
     def decode(self, rows: np.ndarray, actions: np.ndarray) -> np.ndarray:
@@ -413,11 +469,20 @@ class GearSpeedCore:
         rows = np.asarray(rows, np.int64)
         self._apply_duty(rows)
         w0 = self.omega[rows]
+        if self.config.action_delay:  # the oldest waiting action reaches the drive; this one queues
+            q = self._pending
+            applied = q[rows, 0].copy()
+            q[rows, :-1] = q[rows, 1:]
+            q[rows, -1] = np.clip(np.asarray(actions, float), -1.0, 1.0)
+            actions = applied
+            self._pend_obs[rows] = q[rows, 0]  # the observation shows what drives the next step
         w1 = self.decode(rows, actions)
         pc, st, ok, elapsed = self._integrate(rows, w0, w1, self.config.periods_per_step)
         EK.push_history(rows, pc, w0, w1, ok, self.hist)
         self.omega[rows] = np.where(ok, w1, w0)
-        return self._post(rows, st, ok, elapsed, w0, w1, False)
+        out = self._post(rows, st, ok, elapsed, w0, w1, False)
+        self._add_noise(rows, ok)
+        return out
 
 
 __all__ = [

@@ -96,13 +96,14 @@ def _clip(x, lo, hi):
 
 @kernel
 def post_step(rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, S, hist, tr_ref, fs, omega_n, steps, X,
-              ACC, I, reward_cols, cost_cols, Fm, obs_cols, obs, reward, terminated, truncated):  # fmt: skip
+              ACC, I, reward_cols, cost_cols, Fm, obs_cols, obs, reward, terminated, truncated, pending):  # fmt: skip
     """Features, reward and cost terms, episode sums, info and observation of ``rows`` after an interval.
 
     ``is_reset``: the interval was the warm-up of a new episode (no reward; sums start at 0).
     ``demand``: required omega charged in this step; ``demand_next``: shown in the observation.
     ``reward_cols`` / ``cost_cols``: info columns the task sums into the reward / ``info["cost"]``;
-    ``obs_cols``: feature columns of ``Fm`` the observation takes, in order.
+    ``obs_cols``: feature columns of ``Fm`` the observation takes, in order. ``pending`` (n,): the action on
+    its way to the drive of each row (the actuator dead time; 0 without one).
     Writes ``I`` (info matrix), ``Fm``, ``obs``, ``ACC``, ``steps`` and the (m,) outputs in place.
     """
     lo = S[P.omega_min]
@@ -256,6 +257,7 @@ def post_step(rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, S, h
             f[F.drive_impacts] = _clip(drive / pps, -1.0, FEATURE_CLIP)
             f[F.back_impacts] = _clip(back / pps, -1.0, FEATURE_CLIP)
             f[F.demand] = _clip(2.0 * (demand_next[j] - lo) / span - 1.0, -1.0, 1.0) if has_demand else 0.0
+            f[F.pending_action] = pending[r]
             for i in range(K.NSTATE):
                 f[F.X_p + i] = _clip(X[r, i], -STATE_CLIP, STATE_CLIP)
             o = obs[r]

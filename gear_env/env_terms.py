@@ -327,6 +327,23 @@ def _plant_family(label: str, v: Any, cfg: Any) -> Any:
     return from_value(PlantFamily, label, v)
 
 
+def _wear(label: str, v: Any, cfg: Any) -> Any:
+    """A WearChange (or None); the family's e_m1 range times every wear factor must stay valid."""
+    from .tasks import PlantFamily, WearChange, from_value
+
+    w = from_value(WearChange, label, v)
+    if w is not None:
+        fam = cfg.plant_family if cfg.plant_family is not None else PlantFamily(load=(1.0, 1.0), e_m1=(1.0, 1.0))
+        levels = cfg.duty_cycle.levels if cfg.duty_cycle is not None else (1.0,)
+        lo, hi = min(w.factors), max(w.factors)
+        try:
+            worn = PlantFamily(load=fam.load, e_m1=(fam.e_m1[0] * lo, fam.e_m1[1] * hi))
+        except ValueError as exc:
+            raise ValueError(f"{label} factors {list(w.factors)} take the family's e_m1 out of range: {exc}") from None
+        worn.check(cfg.params, levels, MIN_STATIC_MESH_FORCE)
+    return w
+
+
 def _duty_cycle(label: str, v: Any, cfg: Any) -> Any:
     """A DutyCycle (or None); with a plant family or a duty cycle, every corner of the family box under
     every duty level must give valid parameters (refused here, before any training starts)."""
@@ -364,6 +381,10 @@ def _full_state(cfg: Any) -> bool:
 
 def _has_memory(cfg: Any) -> bool:
     return cfg.memory_steps > 0.0
+
+
+def _has_delay(cfg: Any) -> bool:
+    return cfg.action_delay > 0
 
 
 TROUBLE_CONTACT = 0.02
@@ -412,6 +433,16 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("duty_cycle", None, _duty_cycle, "None, `DutyCycle` or dict",
             "load duty cycle: the load torques times a level from `levels`, changing every `segment_steps` "
             "steps (drawn per episode)"),
+    Setting("wear", None, _wear, "None, `WearChange` or dict",
+            "a change of the pair within the episode: at a step drawn from `at_step`, e_m1 times a factor drawn "
+            "from `factors` (see gear_env/tasks.py)"),
+    Setting("action_delay", 0, integer(0, 10), "[0, 10]",
+            "actuator dead time [env steps]: the action of step t drives step t + action_delay (the drive "
+            "holds the initial speed's set-point until then)"),
+    Setting("sensor_noise", 0.0, real(0.0, 1.0), "[0, 1]",
+            "std of Gaussian noise added to the continuous sensor features (force, deflection, defect, "
+            "contact loss and their memory copies) of the observation, clipped to their bounds; drawn per "
+            "episode; info and reward keep the true values"),
     # observation
     Setting("observation", "sensors", choice(*OBSERVATION_SETS), '"sensors", "full"', "observation set"),
     Setting("poincare_window", 16, integer(9, 1000), "[9, 1000]", "Poincare samples for the defect"),
@@ -509,6 +540,9 @@ OBSERVATIONS: tuple[Observation, ...] = (
                 "step (of the warm-up itself after a reset)", when=_has_memory),
     Observation("prev_contact_loss", 0.0, 1.0, "(only with `memory_steps` > 0) `contact_loss` of the previous step "
                 "(of the warm-up itself after a reset)", when=_has_memory),
+    Observation("pending_action", -1.0, 1.0, "(only with `action_delay` > 0) the action already sent that drives the "
+                "next step (the state of the dead time; the drive's hold action right after a reset)",
+                when=_has_delay),
 )  # fmt: skip
 
 

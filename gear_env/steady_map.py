@@ -69,9 +69,9 @@ class SteadyRewardMap:
 
 
 def undisturbed_config(cfg: GearSpeedConfig) -> GearSpeedConfig:
-    """``cfg`` as a steady map sees it: the undisturbed plant (no randomisation, demand, plant family or
-    duty cycle; all throughput paid) under delta actions without a reference filter, so that every task
-    built on the same physics and weights shares one map."""
+    """``cfg`` as a steady map sees it: the undisturbed plant (no randomisation, demand, plant family,
+    duty cycle, wear change, dead time or sensor noise; all throughput paid) under delta actions without a
+    reference filter, so that every task built on the same physics and weights shares one map."""
     return cfg.replace(
         randomize_params=False,
         demand=None,
@@ -80,6 +80,9 @@ def undisturbed_config(cfg: GearSpeedConfig) -> GearSpeedConfig:
         duty_cycle=None,
         action_mode="delta",
         reference_filter=1.0,
+        wear=None,
+        action_delay=0,
+        sensor_noise=0.0,
     )
 
 

@@ -166,6 +166,47 @@ class DutyCycle:
         return {"levels": list(self.levels), "segment_steps": list(self.segment_steps)}
 
 
+@dataclass(frozen=True)
+class WearChange:
+    """A change of the pair within the episode: at one random step the transmission-error amplitude
+    ``e_m1`` is multiplied by a factor (a tooth wearing in or pitting, a thermal change of the
+    profile error), so that a pair identified at the start is not the pair at the end.
+
+    Attributes:
+        factors: multipliers of ``e_m1`` (each in (0, 10]); each episode draws one uniformly from them
+            (a finite set, so the planners' steady maps can be cached).
+        at_step: (low, high) step at which the change happens (uniform integer; the pair of steps
+            ``at_step`` onwards is the changed one).
+    """
+
+    factors: tuple[float, ...] = (0.5, 0.7, 1.4, 2.0)
+    at_step: tuple[int, int] = (25, 75)
+
+    def __post_init__(self) -> None:
+        fs = self.factors
+        if isinstance(fs, (str, bytes)) or not isinstance(fs, Sequence) or len(fs) == 0:
+            raise ValueError(f"wear.factors must be a non-empty list of e_m1 multipliers in (0, 10], got {fs!r}")
+        out = []
+        for v in fs:
+            ok = not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
+            if not ok or not math.isfinite(v) or not 0.0 < float(v) <= 10.0:
+                raise ValueError(f"wear.factors must be e_m1 multipliers in (0, 10], got {fs!r}")
+            out.append(float(v))
+        object.__setattr__(self, "factors", tuple(out))
+        object.__setattr__(self, "at_step", int_pair("wear", "at_step", self.at_step, 0, 10**6))
+
+    def draw(self, rng: np.random.Generator, steps: int) -> np.ndarray:
+        """``e_m1`` multiplier of each of ``steps`` environment steps (the step first, then the factor)."""
+        at = int(rng.integers(self.at_step[0], self.at_step[1] + 1))
+        f = self.factors[int(rng.integers(len(self.factors)))]
+        out = np.ones(steps)
+        out[min(at, steps) :] = f
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"factors": list(self.factors), "at_step": list(self.at_step)}
+
+
 def random_demand(rng: np.random.Generator, steps: int, lo: float, hi: float, segment: tuple[int, int]) -> np.ndarray:
     """Piecewise-constant operator demand: a level uniform in [lo, hi] held for ``segment`` steps (uniform integers)."""
     out = np.empty(steps + 1)
@@ -189,6 +230,8 @@ class Episode:
         demand: (max_steps + 1,) required omega charged in step t (entry t + 1 is shown after step t), or
             None without a demand.
         initial_omega: omega of the warm-up (the start of the episode).
+        wear_factor: (max_steps,) multiplier of ``e_m1`` during step t (a :class:`WearChange`), or None
+            (the pair does not change).
     """
 
     params: GearParams
@@ -196,17 +239,24 @@ class Episode:
     load_factor: np.ndarray
     demand: np.ndarray | None
     initial_omega: float
+    wear_factor: np.ndarray | None = None
+
+    def conditions(self) -> np.ndarray:
+        """(max_steps, 2) duty level and ``e_m1`` multiplier of every step."""
+        wear = np.ones(len(self.load_factor)) if self.wear_factor is None else self.wear_factor
+        return np.column_stack([np.asarray(self.load_factor, float), np.asarray(wear, float)])
 
     def params_at(self, step: int) -> GearParams:
         """The gear pair during step ``step`` (0-based, clipped to the episode)."""
         i = min(max(int(step), 0), len(self.load_factor) - 1)
-        return self.params_at_level(float(self.load_factor[i]))
+        wear = 1.0 if self.wear_factor is None else float(self.wear_factor[i])
+        return self.params_at_level(float(self.load_factor[i]), wear)
 
-    def params_at_level(self, level: float) -> GearParams:
-        """The gear pair under duty level ``level`` (load torques times ``level``)."""
-        if level == 1.0:
+    def params_at_level(self, level: float, wear: float = 1.0) -> GearParams:
+        """The gear pair under duty level ``level`` (load torques times ``level``) and ``e_m1`` times ``wear``."""
+        if level == 1.0 and wear == 1.0:
             return self.params
-        return PlantFamily.plant(self.params, {"load": 1.0, "e_m1": 1.0}, level)
+        return PlantFamily.plant(self.params, {"load": 1.0, "e_m1": wear}, level)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -214,10 +264,11 @@ class Episode:
             "initial_omega": self.initial_omega,
             "load_factor": self.load_factor.tolist(),
             "demand": None if self.demand is None else self.demand.tolist(),
+            "wear_factor": None if self.wear_factor is None else self.wear_factor.tolist(),
         }
 
 
-__all__ = ["DutyCycle", "Episode", "PlantFamily", "random_demand"]
+__all__ = ["DutyCycle", "Episode", "PlantFamily", "WearChange", "random_demand"]
 
 
 V1_SETTINGS: dict[str, Any] = {
@@ -240,9 +291,18 @@ DEMAND_SETTINGS: dict[str, Any] = {
     "w_demand": 1.0,
 }
 """``GearSpeedDemand-v0``: the settings that differ from ``GearSpeed-v0``."""
+DEMAND_HARD_SETTINGS: dict[str, Any] = {
+    **DEMAND_SETTINGS,
+    "sensor_noise": 0.1,
+    "action_delay": 1,
+    "wear": {"factors": (0.5, 0.7, 1.4, 2.0), "at_step": (25, 75)},
+}
+"""``GearSpeedDemandHard-v0``: ``GearSpeedDemand-v0`` with noisy sensors, a one-step actuator dead time and a pair whose
+transmission error changes once within the episode (docs/tasks/GearSpeedDemandHard-v0.md)."""
 TASK_SETTINGS: dict[str, dict[str, Any]] = {
     "GearSpeed-v0": {},
     "GearSpeed-v1": V1_SETTINGS,
     "GearSpeedDemand-v0": DEMAND_SETTINGS,
+    "GearSpeedDemandHard-v0": DEMAND_HARD_SETTINGS,
 }
 """Registered tasks and their settings (``gym.make(ID)`` uses these; keywords override them)."""
