@@ -1,7 +1,8 @@
 """The Demand tables of docs/RESULTS.md under the evaluation protocol (agents/protocol.py), with CIs.
 
 Run:  python benchmarks/demand_protocol.py --set test [--policy SPEC ...] [--runs RUN_DIR ...]
-                                          [--env GearSpeedDemandHard-v0] [--reference pretrained] [--cache DIR] [--markdown PATH] [--json PATH]
+                                          [--env GearSpeedDemandHard-v0] [--reference pretrained]
+                                          [--cache DIR] [--markdown PATH] [--json PATH]
       python benchmarks/demand_protocol.py --set validation --runs runs/demand_s0 runs/demand_s1 ... --select
       python benchmarks/demand_protocol.py --calibrate --set seeds:0-119   (the scripts' sensor map, training seeds)
 
