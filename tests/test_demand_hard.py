@@ -152,3 +152,30 @@ def test_pending_action_is_observed_and_scripts_predict_the_dead_time():
         obs, _, _, _, info = env.step(a.reshape(1))
         assert obs[-1] == pytest.approx(float(a.reshape(-1)[0]), abs=1e-6)
         assert info["omega"] == pytest.approx(ahead, abs=1e-6)  # omega is read from a float32 observation
+
+
+def test_filtered_follow_identifies_a_pair_through_the_noise():
+    """On one fixed pair (no duty cycle, no wear) the averaged q of ``filtered-follow`` lands near the pair's
+    true q = e_m1 factor / load factor (single readings there spread over about +-0.3 in log q)."""
+    from agents.registry import resolve_policy
+
+    kw = {"duty_cycle": None, "wear": None, "plant_family": {"load": [1.0, 1.0], "e_m1": [0.5, 0.5]}}
+    env = gym.make("GearSpeedDemandHard-v0", **kw).unwrapped
+    pol = resolve_policy("filtered-follow", env.config, env_id="GearSpeedDemandHard-v0")
+    assert pol.name == "filtered-follow" and pol.window == 8 and pol.margin == pytest.approx(0.2)
+    obs, _ = env.reset(seed=2)
+    state, start = None, np.array([True])
+    for _ in range(30):
+        a, state = pol.predict(obs[None], state=state, episode_start=start, deterministic=True)
+        start = np.array([False])
+        obs, *_ = env.step(a.reshape(1))
+    assert state["count"][0] >= 8
+    assert abs(np.log(state["q"][0]) - np.log(0.5)) < 0.25
+
+
+@pytest.mark.parametrize("spec", ["filtered-follow:x", "filtered-follow:0", "filtered-follow:-3"])
+def test_filtered_follow_spec_errors(spec):
+    from agents.registry import resolve_policy
+
+    with pytest.raises(ValueError, match="filtered-follow"):
+        resolve_policy(spec, gym.make("GearSpeedDemandHard-v0").unwrapped.config, env_id="GearSpeedDemandHard-v0")
