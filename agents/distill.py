@@ -48,6 +48,15 @@ def teacher_for(env_id: str, cfg: Any) -> Any:
     return resolve_policy("oracle", cfg, env_id=env_id)
 
 
+def sent(state: Any, action: float) -> Any:
+    """The teacher's ``state`` after the driver (the student) sent ``action``: with an actuator dead time the
+    teacher's Smith predictor must hold the action actually on its way, not its own label
+    (:meth:`agents.baselines.ScriptedPolicy.predict_batch`)."""
+    if isinstance(state, dict) and "pending" in state:
+        state["pending"][:, -1] = float(np.float32(action))
+    return state
+
+
 def _actor_mean(policy: Any, obs: Any) -> Any:
     """The actor's mean action for normalised observations (a torch tensor; differentiable)."""
     return policy.get_distribution(obs).distribution.mean
@@ -119,8 +128,7 @@ def distill(
                     obs_it.append(obs.astype(np.float64))
                     lab_it.append(float(label[0, 0]))
                     act = float(label[0, 0]) if it == 0 else student(obs.astype(np.float64))
-                    if isinstance(state, dict) and "pending" in state:  # dead time: the student's action is
-                        state["pending"][:, -1] = act  # the one on its way, not the teacher's label
+                    state = sent(state, act)
                     obs, _r, term, trunc, _info = env.step(np.array([act], np.float32))
                     steps += 1
                     if term or trunc:

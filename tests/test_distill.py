@@ -198,3 +198,32 @@ def test_rl_zoo_trains_the_distillation_through_the_callback(tmp_path):
 
     model = PPO.load(str(tmp_path / "logs" / "ppo" / f"{ENV}_1" / f"{ENV}.zip"), device="cpu")
     assert model.num_timesteps == 602  # 600 distilled + the one step (2 envs) at which it stopped: no PPO update
+
+
+def test_under_a_dead_time_the_teacher_predicts_from_the_students_actions(tmp_path):
+    """GearSpeedDemandHard-v0 (one step of dead time): with ``sent`` the teacher's predicted omega (its Smith
+    predictor) is the one the environment reaches while another policy drives; the recipe runs there."""
+    from agents.distill import sent
+    from agents.envs import make_config
+    from gear_env.env import GearSpeedEnv
+
+    cfg = make_config("GearSpeedDemandHard-v0", FAST)
+    env, teacher = GearSpeedEnv(cfg), teacher_for("GearSpeedDemandHard-v0", cfg)
+    rng = np.random.default_rng(0)
+    obs, _ = env.reset(seed=3)
+    teacher.observe_episode(env.episode)
+    state, start = None, np.array([True])
+    misses = 0
+    for _ in range(cfg.max_steps):
+        label, state = teacher.predict(obs[None], state, start)
+        start = np.array([False])
+        ahead = float(state["omega_ahead"][0])
+        act = float(rng.uniform(-1, 1))
+        misses += abs(act - float(label[0, 0])) > 0.1  # the driver does not follow the teacher
+        state = sent(state, act)
+        obs, _r, term, trunc, info = env.step(np.array([act], np.float32))
+        assert info["omega"] == pytest.approx(ahead, abs=1e-6)
+    assert misses > cfg.max_steps // 2
+    out = tmp_path / "hard"
+    train(_opts(out, env_id="GearSpeedDemandHard-v0", distill=2, distill_params={"episodes": 4, "epochs": 5}))
+    assert json.loads((out / "config.json").read_text())["env_id"] == "GearSpeedDemandHard-v0"
