@@ -410,18 +410,18 @@ class GearSpeedCore:
         (the value the previous observation showed), clipped to the observation bounds."""
         if not len(self._noise_idx):
             return
+        rows = np.asarray(rows, np.int64)[np.asarray(fresh, bool)]
+        if not len(rows):
+            return
         sig = self.config.sensor_noise
-        T = self.config.max_steps
-        for r, ok in zip(rows.tolist(), fresh.tolist()):
-            if not ok:
-                continue
-            t = min(int(self.steps[r]), T)
-            o = self.obs[r]
-            z = self._noise[r]
-            for c, k in enumerate(self._noise_idx.tolist()):
-                o[k] = min(max(o[k] + sig * z[t, c], self._obs_lo[k]), self._obs_hi[k])
-            for k, c in self._noise_prev.tolist():  # at the reset the memory copy is the first reading itself
-                o[k] = min(max(o[k] + sig * z[max(t - 1, 0), c], self._obs_lo[k]), self._obs_hi[k])
+        t = np.minimum(self.steps[rows], self.config.max_steps)
+        obs, lo, hi = self.obs, self._obs_lo, self._obs_hi
+        idx = self._noise_idx
+        obs[rows[:, None], idx] = np.clip(obs[rows][:, idx] + sig * self._noise[rows, t], lo[idx], hi[idx])
+        if len(self._noise_prev):  # at the reset the memory copy is the first reading itself
+            k, c = self._noise_prev[:, 0], self._noise_prev[:, 1]
+            z = self._noise[rows, np.maximum(t - 1, 0)][:, c]
+            obs[rows[:, None], k] = np.clip(obs[rows][:, k] + sig * z, lo[k], hi[k])
 
     def _set_plant(self, r: int, p: GearParams, equilibrium: bool = False) -> None:
         """Row ``r`` simulates the gear pair ``p`` from now on (the features' static references follow
