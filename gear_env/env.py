@@ -159,11 +159,12 @@ class GearSpeedEnv(gym.Env):
 
     One class, four registered tasks (``gear_env.tasks.TASK_SETTINGS``; docs/ENVIRONMENT.md says why):
     ``GearSpeed-v0`` (the defaults), ``GearSpeed-v1`` (speed-reference actions, 48-period control
-    step, 0.1 per step, 100 steps) and ``GearSpeedDemand-v0`` (as v1, plus a gear pair drawn per
+    step, 0.1 per step, 100 steps), ``GearSpeedDemand-v0`` (as v1, plus a gear pair drawn per
     episode from a family, a load duty cycle and a random operator demand; throughput paid only up to
-    the demand), and ``GearSpeedDemandHard-v0`` (as GearSpeedDemand-v0, with noisy sensors, a one-step
-    actuator dead time and a wear change of the pair within the episode). ``self.episode`` is the episode's scenario (an oracle may read it; the agent does
-    not see it). ``info["cost"]`` (>= 0) sums the cost terms for safe-RL libraries.
+    the demand) and ``GearSpeedDemandHard-v0`` (as GearSpeedDemand-v0, with noisy sensors, a one-step
+    actuator dead time and a wear change of the pair within the episode). ``self.episode`` is the
+    episode's scenario (an oracle may read it; the agent does not see it). ``info["cost"]`` (>= 0) sums
+    the cost terms for safe-RL libraries.
 
     ## Version History
 
