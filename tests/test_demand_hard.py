@@ -179,3 +179,19 @@ def test_filtered_follow_spec_errors(spec):
 
     with pytest.raises(ValueError, match="filtered-follow"):
         resolve_policy(spec, gym.make("GearSpeedDemandHard-v0").unwrapped.config, env_id="GearSpeedDemandHard-v0")
+
+
+def test_the_shipped_policy_runs_on_the_task():
+    """``--policy pretrained`` on GearSpeedDemandHard-v0: the shipped network reads the task's 16 entries."""
+    from agents.registry import resolve_policy
+
+    env = gym.make("GearSpeedDemandHard-v0", **SHORT).unwrapped
+    pol = resolve_policy("pretrained", env.config, env_id="GearSpeedDemandHard-v0")
+    obs, _ = env.reset(seed=800)
+    assert obs.shape == (16,)
+    acts = []
+    for _ in range(SHORT["max_steps"]):
+        a, _ = pol.predict(obs, deterministic=True)
+        acts.append(float(np.asarray(a).reshape(-1)[0]))
+        obs, *_ = env.step(np.asarray(a, np.float32).reshape(1))
+    assert all(-1.0 <= x <= 1.0 for x in acts) and len(set(acts)) > 1
