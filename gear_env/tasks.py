@@ -7,7 +7,9 @@
 2. a load duty cycle from a :class:`DutyCycle` (the load torque is multiplied by a level that changes
    at random times during the episode);
 3. an operator demand (a piecewise-constant required omega, a new level uniform over
-   [omega_min, omega_max] every few steps).
+   [omega_min, omega_max] every few steps);
+4. with ``wear`` (``GearSpeedDemandHard-v0``), a :class:`WearChange`: at one random step the pair's
+   transmission error is multiplied by a factor.
 
 The result is an :class:`Episode`: what the environment simulates and what an oracle may know, never
 what the agent observes. Units: torques in N m, ``e_m1`` in m (factors are dimensionless), time in
@@ -175,8 +177,8 @@ class WearChange:
     Attributes:
         factors: multipliers of ``e_m1`` (each in (0, 10]); each episode draws one uniformly from them
             (a finite set, so the planners' steady maps can be cached).
-        at_step: (low, high) step at which the change happens (uniform integer; the pair of steps
-            ``at_step`` onwards is the changed one).
+        at_step: (low, high) step at which the change happens (a uniform integer; the changed pair
+            drives that step and every later one).
     """
 
     factors: tuple[float, ...] = (0.5, 0.7, 1.4, 2.0)
