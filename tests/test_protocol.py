@@ -114,13 +114,17 @@ def test_demand_baselines_are_deterministic_and_beat_fixed_best(demand_cfg):
         assert R[s].sum() > R["fixed-best"].sum(), (s, R[s], R["fixed-best"])
 
 
-def _validation_gap_share(model_zip, demand_cfg) -> float:
+HARD_SHARE = 0.5
+"""What 4 distillation rounds must close on GearSpeedDemandHard-v0's validation episodes (fixed-best: 0)."""
+
+
+def _validation_gap_share(model_zip, demand_cfg, env_id: str = ENV) -> float:
     """Share of the fixed-best -> oracle gap the model closes on the 50 validation episodes."""
     from agents.registry import resolve_policy
     from gear_env.evaluation import evaluate_policies
 
     specs = ("oracle", "fixed-best", str(model_zip))
-    pols = {s: resolve_policy(s, demand_cfg, env_id=ENV) for s in specs}
+    pols = {s: resolve_policy(s, demand_cfg, env_id=env_id) for s in specs}
     rep = evaluate_policies(pols, demand_cfg, episodes=len(P.VALIDATION_SEEDS), seed=P.VALIDATION_SEEDS.start)
     R = [np.array([e.ret for e in rep.episodes[s]]) for s in specs]
     return P.gap_closed(R[2], R[1], R[0])[0]
@@ -194,3 +198,21 @@ def test_distillation_recipe_learns_on_validation_episodes(tmp_path, demand_cfg)
                        tensorboard=False, verbose=0))  # fmt: skip
     share = _validation_gap_share(out / "best_model.zip", demand_cfg)
     assert share >= 0.7, f"4 rounds of distillation closed {100 * share:.1f} % of the gap"
+
+
+@pytest.mark.slow
+def test_distillation_recipe_learns_the_hard_task(tmp_path):
+    """The same recipe on GearSpeedDemandHard-v0 (noise, dead time, wear change), 4 of its 12 rounds, training seed
+    0, closes >= HARD_SHARE of the gap on the 50 validation episodes (no timing); it closed 63.0 % when written.
+    The full recipe's seed 0 closed 77.8 % there and the task's best script, ``filtered-follow``, 66.5 %."""
+    from agents.ppo import TrainOptions, train
+    from gear_env.env_config import task_config
+
+    hard = "GearSpeedDemandHard-v0"
+    out = tmp_path / "run"
+    train(TrainOptions(out=str(out), env_id=hard, timesteps=0, seed=P.TRAIN_RUN_SEEDS[0], distill=4,
+                       eval_episodes=20, checkpoint_freq=0, ppo={"net_arch": [128, 128]}, progress_bar=False,
+                       tensorboard=False, verbose=0))  # fmt: skip
+    share = _validation_gap_share(out / "best_model.zip", task_config(hard), hard)
+    print(f"4 rounds on {hard}: {100 * share:.1f} % of the gap")
+    assert share >= HARD_SHARE, f"4 rounds of distillation closed {100 * share:.1f} % of the gap on {hard}"
