@@ -49,6 +49,7 @@ NAMES = (
     "delayed-oracle:K",
     "identify-follow",
     "sensor-servo",
+    "filtered-follow[:N]",
 )
 
 
