@@ -53,6 +53,7 @@ class ScriptedPolicy(BasePolicy):
         self.has_demand = bool(cp.get("has_demand", False))
         self.action_delay = int(cp.get("action_delay", 0))
         self.sensor_noise = float(cp.get("sensor_noise", 0.0))
+        self._decoder = None  # the environment's own action decoder, built on the first need (omega_after)
 
     # ---- conversions ----------------------------------------------------------------------------
     def omega_from_obs(self, obs: np.ndarray) -> np.ndarray:
@@ -99,19 +100,21 @@ class ScriptedPolicy(BasePolicy):
         return a.astype(np.float32).reshape(n, 1), state
 
     def omega_after(self, omega: np.ndarray, actions: np.ndarray) -> np.ndarray:
-        """Omega (n,) after the actions (n, k) drive k steps from ``omega``, as the environment decodes them
-        (delta or target mode, reference filter, rate limit, range)."""
-        w = np.asarray(omega, float).copy()
-        lo, hi, dmax = self.omega_min, self.omega_max, self.max_domega
-        for a in np.clip(np.asarray(actions, float), -1.0, 1.0).T:
-            if self.action_mode == "delta":
-                t = w + a * dmax
-            else:
-                t = lo + 0.5 * (a + 1.0) * (hi - lo)
-                if self.reference_filter != 1.0:
-                    t = w + self.reference_filter * (t - w)
-                t = np.clip(t, w - dmax, w + dmax)
-            w = np.clip(t, lo, hi)
+        """Omega (n,) after the actions (n, k) drive k steps from ``omega``, decoded by the environment's own
+        kernel (``gear_env.env_kernels.decode_actions``: delta or target mode, reference filter, rate limit)."""
+        if self._decoder is None:
+            from gear_env.env_kernels import decode_actions
+
+            from .envs import GEAR_ENV_ID, make_config
+
+            c = make_config(GEAR_ENV_ID, self.config)
+            self._decoder = (decode_actions, c.TERMS.settings_vector(c), c.action_mode == "target")
+        decode, S, target_mode = self._decoder
+        w = np.array(omega, float)
+        for a in np.asarray(actions, float).T:
+            out = np.empty_like(w)
+            decode(w, np.ascontiguousarray(a), S, target_mode, out)
+            w = out
         return w
 
     def _state(self, state: Any, n: int, episode_start: np.ndarray | None) -> Any:

@@ -81,11 +81,14 @@ def _demand(policy: ScriptedPolicy, obs: np.ndarray) -> np.ndarray:
     return policy.omega_min + 0.5 * (obs[:, OBS_DEMAND] + 1.0) * (policy.omega_max - policy.omega_min)
 
 
-def _trouble(obs: np.ndarray) -> np.ndarray:
+def _trouble(obs: np.ndarray, margin: float = 0.0) -> np.ndarray:
+    """Troubled steps: contact loss, an impact or a periodicity defect; ``margin`` raises the thresholds of the
+    continuous sensors (for noisy ones; impacts are counted events, exact)."""
     from gear_env.env_terms import TROUBLE_CONTACT
 
     impacts = obs[:, OBS_DRIVE_IMPACTS] + obs[:, OBS_BACK_IMPACTS]
-    return (obs[:, OBS_CONTACT] > TROUBLE_CONTACT) | (impacts > 0) | (obs[:, OBS_DEFECT] > TROUBLE_DEFECT)
+    contact = obs[:, OBS_CONTACT] > TROUBLE_CONTACT + margin
+    return contact | (impacts > 0) | (obs[:, OBS_DEFECT] > TROUBLE_DEFECT + margin)
 
 
 def _level(obs: np.ndarray) -> np.ndarray:
@@ -98,10 +101,15 @@ def _need_demand(policy: ScriptedPolicy) -> None:
         raise ValueError(f"policy {policy.name!r} follows a demand: use it on GearSpeedDemand-v0 (demand='random')")
 
 
+def _step_speed(omega: np.ndarray, obs: np.ndarray, max_domega: float) -> tuple[np.ndarray, np.ndarray]:
+    """The mean speed of the step just sensed, and whether the force shape table covers it."""
+    w = omega - 0.5 * obs[:, OBS_DOMEGA] * max_domega
+    return w, (w >= H_OMEGAS[0]) & (w <= H_OMEGAS[-1])
+
+
 def log_q(omega: np.ndarray, obs: np.ndarray, max_domega: float) -> np.ndarray:
     """The pair's log q sensed in one step: log rho - log h at the step's mean speed (NaN outside the table)."""
-    w = omega - 0.5 * obs[:, OBS_DOMEGA] * max_domega
-    known = (w >= H_OMEGAS[0]) & (w <= H_OMEGAS[-1])
+    w, known = _step_speed(omega, obs, max_domega)
     return np.where(known, _level(obs) - np.interp(w, H_OMEGAS, LOG_H), np.nan)
 
 
@@ -188,20 +196,10 @@ class FilteredFollow(SensorServo):
     def initial_state(self, n: int) -> dict[str, np.ndarray]:
         return {"t": np.zeros(n, np.int64), "q": np.zeros(n), "count": np.zeros(n)}
 
-    def trouble(self, obs: np.ndarray) -> np.ndarray:
-        """Troubled steps, with the noisy sensors' thresholds raised by twice the noise (impacts are counted
-        events: exact)."""
-        from gear_env.env_terms import TROUBLE_CONTACT
-
-        m = self.margin
-        impacts = obs[:, OBS_DRIVE_IMPACTS] + obs[:, OBS_BACK_IMPACTS]
-        return (obs[:, OBS_CONTACT] > TROUBLE_CONTACT + m) | (impacts > 0) | (obs[:, OBS_DEFECT] > TROUBLE_DEFECT + m)
-
     def _targets(self, omega, obs, state):
         state["t"] = state["t"] + 1
-        trouble = self.trouble(obs)
-        w = omega - 0.5 * obs[:, OBS_DOMEGA] * self.max_domega
-        known = (w >= H_OMEGAS[0]) & (w <= H_OMEGAS[-1])
+        trouble = _trouble(obs, self.margin)  # thresholds raised by twice the noise
+        w, known = _step_speed(omega, obs, self.max_domega)
         sensed = np.expm1(obs[:, OBS_FORCE_RMS].astype(float)) / np.exp(np.interp(w, H_OMEGAS, LOG_H))
         use = ~trouble & known
         count = np.where(use, state["count"] + 1.0, state["count"])

@@ -32,9 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-ENV_ID = "GearSpeedDemand-v0"
-"""The task of the tables (``--env`` chooses another Demand task)."""
 DEMAND_TASKS = ("GearSpeedDemand-v0", "GearSpeedDemandHard-v0")
+"""The tasks of the tables (``--env``; the first is the default)."""
 BASELINES = ("oracle", "fixed-best", "delayed-oracle:10", "identify-follow", "sensor-servo", "pretrained")
 COST_TERMS = ("reward_chaos", "reward_contact", "reward_impact", "reward_vibration", "reward_rate", "reward_divergence")
 
@@ -80,7 +79,7 @@ def episode_rows(policy, cfg, seeds: Sequence[int]) -> list[dict]:
     return out
 
 
-def calibrate(cfg, seeds: Sequence[int]) -> str:
+def calibrate(cfg, seeds: Sequence[int], env_id: str = DEMAND_TASKS[0]) -> str:
     """The sensor map of agents/demand_scripts.py from the oracle's rollouts on ``seeds`` (training seeds): on
     clean, steady steps where the demand is above the oracle's next speed, the log q sensed there per hold
     speed (0.05 grid), and the boundary between neighbouring holds (midway between the 95th percentile of the
@@ -90,7 +89,7 @@ def calibrate(cfg, seeds: Sequence[int]) -> str:
     from gear_env.env import GearSpeedEnv
     from gear_env.env_terms import TROUBLE_CONTACT
 
-    env, oracle = GearSpeedEnv(cfg), resolve_policy("oracle", cfg, env_id=ENV_ID)
+    env, oracle = GearSpeedEnv(cfg), resolve_policy("oracle", cfg, env_id=env_id)
     span = cfg.omega_max - cfg.omega_min
     x, hold = [], []
     for s in seeds:
@@ -127,7 +126,7 @@ def _safe(spec: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", spec).strip("_") or "policy"
 
 
-def rollout(spec: str, cfg, seeds: range, cache: Path | None, label: str) -> list[dict]:
+def rollout(spec: str, cfg, seeds: range, cache: Path | None, label: str, env_id: str = DEMAND_TASKS[0]) -> list[dict]:
     """The episode rows of ``spec`` on ``seeds`` (read from / written to the cache when given)."""
     from agents.registry import resolve_policy
     from gear_env.io import atomic_write_text
@@ -138,7 +137,7 @@ def rollout(spec: str, cfg, seeds: range, cache: Path | None, label: str) -> lis
         if data.get("spec") == spec and data.get("seeds") == [seeds.start, seeds.stop]:
             return data["episodes"]
     t0 = time.process_time()
-    rows = episode_rows(resolve_policy(spec, cfg, env_id=ENV_ID), cfg, seeds)
+    rows = episode_rows(resolve_policy(spec, cfg, env_id=env_id), cfg, seeds)
     print(f"  {spec}: {len(rows)} episodes, {time.process_time() - t0:.0f} s CPU", file=sys.stderr, flush=True)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -199,24 +198,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--markdown", metavar="PATH")
     ap.add_argument("--json", metavar="PATH")
     args = ap.parse_args(argv)
-    globals()["ENV_ID"] = args.env
+    env_id = args.env
 
     from agents.protocol import gap_scores, iqm_ci
     from gear_env.env_config import task_config
     from gear_env.io import atomic_write_text
 
     if args.calibrate:
-        print(calibrate(task_config(ENV_ID), parse_seed_set(args.set)))
+        print(calibrate(task_config(env_id), parse_seed_set(args.set), env_id))
         return 0
     seeds = parse_seed_set(args.set)
-    label = args.set.replace(":", "_") + ("" if ENV_ID == DEMAND_TASKS[0] else f"_{ENV_ID}")
-    cfg = task_config(ENV_ID)
+    label = args.set.replace(":", "_") + ("" if env_id == DEMAND_TASKS[0] else f"_{env_id}")
+    cfg = task_config(env_id)
     cache = Path(args.cache) if args.cache else None
     specs = list(dict.fromkeys(["oracle", "fixed-best", *(args.policy or BASELINES[2:])]))
     runs = [str(Path(r) / "best_model.zip") if Path(r).is_dir() else r for r in args.runs]
     t0 = time.perf_counter()
-    print(f"{ENV_ID}: {len(specs)} policies + {len(runs)} runs on {args.set} seeds {seeds.start}-{seeds.stop - 1}")
-    results = {s: rollout(s, cfg, seeds, cache, label) for s in dict.fromkeys(specs + runs)}
+    print(f"{env_id}: {len(specs)} policies + {len(runs)} runs on {args.set} seeds {seeds.start}-{seeds.stop - 1}")
+    results = {s: rollout(s, cfg, seeds, cache, label, env_id) for s in dict.fromkeys(specs + runs)}
     ref = args.reference if args.reference in results else None
     md, nums = table(results, ref)
     out: dict = {"set": args.set, "seeds": [seeds.start, seeds.stop - 1], "policies": nums}

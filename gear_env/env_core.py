@@ -158,9 +158,9 @@ class GearSpeedCore:
         self._noise = np.zeros((n, cfg.max_steps + 1, len(noisy)))
         lo_b, hi_b = terms.observation_bounds(cfg)
         self._obs_lo, self._obs_hi = lo_b.astype(float), hi_b.astype(float)
-        # actuator dead time: the actions waiting to reach the drive, oldest first
-        self._pending = np.zeros((n, cfg.action_delay))
-        self._pend_obs = np.zeros(n)  # the oldest waiting action of each row (the `pending_action` feature)
+        # actuator dead time: the actions waiting to reach the drive, oldest first (row 0 of each column; it is
+        # also the `pending_action` feature, and stays 0 without a dead time)
+        self._pending = np.zeros((max(cfg.action_delay, 1), n))
         self.X = np.zeros((n, K.NSTATE))
         self.A = np.zeros((n, K.NDOF))
         self.C = np.tile(np.asarray(cfg.params.consts, float), (n, 1))
@@ -320,7 +320,7 @@ class GearSpeedCore:
         EK.post_step(
             rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, self.S, self.hist, self.tr_ref, self.fs,
             self.omega_n, self.steps, self.X, self.ACC, self.I, self._reward_cols, self._cost_cols, self.F,
-            self._obs_cols, self.obs, reward, terminated, truncated, self._pend_obs,
+            self._obs_cols, self.obs, reward, terminated, truncated, self._pending[0],
         )  # fmt: skip
         return reward, terminated, truncated
 
@@ -387,8 +387,7 @@ class GearSpeedCore:
         self.omega[rows] = w_init
         if cfg.action_delay:  # the drive holds the initial speed until the first action arrives
             hold = 2.0 * (w_init - cfg.omega_min) / (cfg.omega_max - cfg.omega_min) - 1.0
-            self._pending[rows] = (hold if cfg.action_mode == "target" else np.zeros_like(w_init))[:, None]
-            self._pend_obs[rows] = self._pending[rows, 0]
+            self._pending[:, rows] = hold if cfg.action_mode == "target" else 0.0
         self.hist[rows] = 0.0
         self.n_tol[rows] = TOL_N_START  # with `tol`: a fresh episode starts from the same step count
         pps = cfg.periods_per_step
@@ -471,11 +470,10 @@ class GearSpeedCore:
         w0 = self.omega[rows]
         if self.config.action_delay:  # the oldest waiting action reaches the drive; this one queues
             q = self._pending
-            applied = q[rows, 0].copy()
-            q[rows, :-1] = q[rows, 1:]
-            q[rows, -1] = np.clip(np.asarray(actions, float), -1.0, 1.0)
+            applied = q[0, rows]
+            q[:-1, rows] = q[1:, rows]
+            q[-1, rows] = np.clip(np.asarray(actions, float), -1.0, 1.0)
             actions = applied
-            self._pend_obs[rows] = q[rows, 0]  # the observation shows what drives the next step
         w1 = self.decode(rows, actions)
         pc, st, ok, elapsed = self._integrate(rows, w0, w1, self.config.periods_per_step)
         EK.push_history(rows, pc, w0, w1, ok, self.hist)

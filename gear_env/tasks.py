@@ -56,6 +56,19 @@ def int_pair(owner: str, name: str, value: Any, lo: int, hi: int) -> tuple[int, 
     return int(value[0]), int(value[1])
 
 
+def multipliers(where: str, value: Any, what: str) -> tuple[float, ...]:
+    """Validate a non-empty list of multipliers, each in (0, 10]; ``what`` names them in the message."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence) or len(value) == 0:
+        raise ValueError(f"{where} must be a non-empty list of {what} in (0, 10], got {value!r}")
+    out = []
+    for v in value:
+        ok = not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
+        if not ok or not math.isfinite(v) or not 0.0 < float(v) <= 10.0:
+            raise ValueError(f"{where} must be {what} in (0, 10], got {value!r}")
+        out.append(float(v))
+    return tuple(out)
+
+
 def from_value(cls: Any, owner: str, value: Any) -> Any:
     """None, an instance, or a dict of the dataclass's fields (unknown keys refused)."""
     if value is None or isinstance(value, cls):
@@ -142,16 +155,7 @@ class DutyCycle:
     segment_steps: tuple[int, int] = (20, 50)
 
     def __post_init__(self) -> None:
-        lv = self.levels
-        if isinstance(lv, (str, bytes)) or not isinstance(lv, Sequence) or len(lv) == 0:
-            raise ValueError(f"duty_cycle.levels must be a non-empty list of load multipliers in (0, 10], got {lv!r}")
-        out = []
-        for v in lv:
-            ok = not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
-            if not ok or not math.isfinite(v) or not 0.0 < float(v) <= 10.0:
-                raise ValueError(f"duty_cycle.levels must be load multipliers in (0, 10], got {lv!r}")
-            out.append(float(v))
-        object.__setattr__(self, "levels", tuple(out))
+        object.__setattr__(self, "levels", multipliers("duty_cycle.levels", self.levels, "load multipliers"))
         object.__setattr__(self, "segment_steps", int_pair("duty_cycle", "segment_steps", self.segment_steps, 1, 10**6))
 
     def draw(self, rng: np.random.Generator, steps: int) -> np.ndarray:
@@ -185,16 +189,7 @@ class WearChange:
     at_step: tuple[int, int] = (25, 75)
 
     def __post_init__(self) -> None:
-        fs = self.factors
-        if isinstance(fs, (str, bytes)) or not isinstance(fs, Sequence) or len(fs) == 0:
-            raise ValueError(f"wear.factors must be a non-empty list of e_m1 multipliers in (0, 10], got {fs!r}")
-        out = []
-        for v in fs:
-            ok = not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
-            if not ok or not math.isfinite(v) or not 0.0 < float(v) <= 10.0:
-                raise ValueError(f"wear.factors must be e_m1 multipliers in (0, 10], got {fs!r}")
-            out.append(float(v))
-        object.__setattr__(self, "factors", tuple(out))
+        object.__setattr__(self, "factors", multipliers("wear.factors", self.factors, "e_m1 multipliers"))
         object.__setattr__(self, "at_step", int_pair("wear", "at_step", self.at_step, 0, 10**6))
 
     def draw(self, rng: np.random.Generator, steps: int) -> np.ndarray:
