@@ -48,6 +48,7 @@ class ScriptedPolicy(BasePolicy):
         self.omega_max = float(cp["omega_max"])
         self.max_domega = float(cp["max_domega"])
         self.action_mode = str(cp["action_mode"])
+        self.action_low, self.action_high = float(cp["action_low"]), float(cp["action_high"])
         self.reference_filter = float(cp.get("reference_filter", 1.0))
         self.max_steps = int(cp["max_steps"])
         self.has_demand = bool(cp.get("has_demand", False))
@@ -66,10 +67,11 @@ class ScriptedPolicy(BasePolicy):
         target = np.clip(np.asarray(target, float), self.omega_min, self.omega_max)
         if self.action_mode == "delta":
             a = (target - omega) / self.max_domega
-        else:  # target mode: the environment filters and rate-limits the move itself
+        else:  # target or limit mode (the limit caps the set-point at the demand): the environment filters and
+            # rate-limits the move itself
             if self.reference_filter != 1.0:  # the set-point whose filtered step lands on the target
                 target = np.clip(omega + (target - omega) / self.reference_filter, self.omega_min, self.omega_max)
-            a = 2.0 * (target - self.omega_min) / (self.omega_max - self.omega_min) - 1.0
+            a = 2.0 * (target - self.action_low) / (self.action_high - self.action_low) - 1.0
         return np.clip(a, -1.0, 1.0)
 
     # ---- the policy interface (BasePolicy.predict wraps this) -------------------------------------
@@ -91,7 +93,7 @@ class ScriptedPolicy(BasePolicy):
         fresh = state["sent"] == 0
         if fresh.any():  # the drive holds the initial speed until the first action arrives
             state["pending"][fresh] = self.action_to(omega[fresh], omega[fresh])[:, None]
-        ahead = self.omega_after(omega, state["pending"])
+        ahead = self.omega_after(omega, state["pending"], _obs_demand(self, obs) if self.has_demand else None)
         state["omega_ahead"] = ahead
         target, state = self._targets(omega, obs, state)
         a = self.action_to(ahead, target).astype(np.float32).astype(float)  # as the environment receives it
@@ -99,21 +101,24 @@ class ScriptedPolicy(BasePolicy):
         state["sent"] = state["sent"] + 1
         return a.astype(np.float32).reshape(n, 1), state
 
-    def omega_after(self, omega: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    def omega_after(self, omega: np.ndarray, actions: np.ndarray, demand: np.ndarray | None = None) -> np.ndarray:
         """Omega (n,) after the actions (n, k) drive k steps from ``omega``, decoded by the environment's own
-        kernel (``gear_env.env_kernels.decode_actions``: delta or target mode, reference filter, rate limit)."""
+        kernel (``gear_env.env_kernels.decode_actions``: delta, target or limit mode, reference filter, rate
+        limit). ``demand`` (n,): the demand those steps follow in limit mode (taken as constant over them)."""
         if self._decoder is None:
             from gear_env.env_kernels import decode_actions
+            from gear_env.env_terms import ACTION_CODES
 
             from .envs import GEAR_ENV_ID, make_config
 
             c = make_config(GEAR_ENV_ID, self.config)
-            self._decoder = (decode_actions, c.TERMS.settings_vector(c), c.action_mode == "target")
-        decode, S, target_mode = self._decoder
+            self._decoder = (decode_actions, c.TERMS.settings_vector(c), ACTION_CODES[c.action_mode])
+        decode, S, mode = self._decoder
         w = np.array(omega, float)
+        d = np.full_like(w, self.omega_max) if demand is None else np.asarray(demand, float).reshape(w.shape)
         for a in np.asarray(actions, float).T:
             out = np.empty_like(w)
-            decode(w, np.ascontiguousarray(a), S, target_mode, out)
+            decode(w, np.ascontiguousarray(a), d, S, mode, out)
             w = out
         return w
 
@@ -144,6 +149,12 @@ class ScriptedPolicy(BasePolicy):
 
     def _targets(self, omega: np.ndarray, obs: np.ndarray, state: dict) -> tuple[np.ndarray, dict]:
         raise NotImplementedError
+
+
+def _obs_demand(policy: ScriptedPolicy, obs: np.ndarray) -> np.ndarray:
+    """The demand of the coming step (n,) from observations (n, obs_dim) of a task with a demand."""
+    x = np.asarray(obs, float)[:, OBS_DEMAND]
+    return policy.omega_min + 0.5 * (x + 1.0) * (policy.omega_max - policy.omega_min)
 
 
 class ConstantSpeed(ScriptedPolicy):

@@ -64,7 +64,10 @@ def force_shape(config: Any = None, e_m1: float = 0.25, load: float = 1.5, steps
     from .envs import GEAR_ENV_ID, make_config
 
     cfg = make_config(GEAR_ENV_ID, config).replace(
-        plant_family={"load": (load, load), "e_m1": (e_m1, e_m1)}, duty_cycle=None
+        plant_family={"load": (load, load), "e_m1": (e_m1, e_m1)},
+        duty_cycle=None,
+        action_mode="target",
+        action_range=None,
     )
     env = GearSpeedEnv(cfg)
     out = []

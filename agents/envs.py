@@ -142,12 +142,18 @@ def control_parameters(cfg: Any) -> dict[str, Any]:
 
     Returns ``omega_min``, ``omega_max`` (observation[0] maps [omega_min, omega_max] linearly to
     [-1, 1]), ``max_domega`` (largest change of omega per step; action 1 in delta mode),
-    ``action_mode`` ("delta" or "target"), ``reference_filter`` (target mode: fraction of the set-point
-    error closed per step before the rate limit), ``max_steps`` (episode length) and ``action_delay``
+    ``action_mode`` ("delta", "target" or "limit"), ``action_low``, ``action_high`` (the speeds the actions -1
+    and +1 mean in target and limit modes), ``reference_filter`` (target and limit modes: fraction of the
+    set-point error closed per step before the rate limit), ``max_steps`` (episode length) and ``action_delay``
     (actuator dead time in steps: an action drives the step ``action_delay`` steps later) and
     ``sensor_noise`` (std of the noise on the continuous sensor features)."""
+    from gear_env.env_terms import action_bounds
+
     c = make_config(GEAR_ENV_ID, cfg)
+    lo, hi = action_bounds(c)
     return {
+        "action_low": lo,
+        "action_high": hi,
         "omega_min": float(c.omega_min),
         "omega_max": float(c.omega_max),
         "max_domega": float(c.max_domega),

@@ -41,7 +41,9 @@ FAMILY_SAMPLE_SEED = 20261202
 
 def _plain(cfg: Any) -> Any:
     """The config of one fixed plant (no family, duty cycle or demand: what the steady map measures)."""
-    return cfg.replace(plant_family=None, duty_cycle=None, wear=None, demand=None, throughput="all")
+    return cfg.replace(
+        plant_family=None, duty_cycle=None, wear=None, demand=None, throughput="all", action_mode="delta"
+    )
 
 
 def cost_map(cfg: Any, params: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -87,12 +89,30 @@ class EpisodePlanner:
         a = (w1 - w0) / self.dmax
         return r + 0.5 * (np.interp(w0, self.grid, ct) + np.interp(w1, self.grid, ct)) - c.w_rate * a * a
 
+    def reachable(self, t: int, w0: np.ndarray, nxt: np.ndarray) -> np.ndarray:
+        """``nxt`` (omegas after step ``t`` from ``w0``) limited to what the action mode can reach. In limit mode
+        the set-point is min(demand of the step, limit) with the limit in the action range [lo, hi], so it lies in
+        [min(d, lo), min(d, hi)] and omega moves towards it (reference filter and rate limit applied). Other
+        modes: ``nxt`` as given (the rate limit only)."""
+        c = self.cfg
+        if c.action_mode != "limit" or self.demand is None:
+            return nxt
+        from gear_env.env_terms import action_bounds
+
+        lo, hi = action_bounds(c)
+        d = self.demand[min(t, len(self.demand) - 1)]
+
+        def reach(setpoint: float) -> np.ndarray:
+            return np.clip(w0 + c.reference_filter * (setpoint - w0), w0 - self.dmax, w0 + self.dmax)
+
+        return np.clip(nxt, reach(min(d, lo)), reach(min(d, hi)))
+
     def _solve(self) -> np.ndarray:
         g = self.grid
-        nxt = np.clip(g[:, None] + self.rates[None, :] * self.dmax, self.lo, self.hi)
         V = np.zeros((self.T + 1, len(g)))
         for left in range(1, self.T + 1):
             t = self.T - left
+            nxt = self.reachable(t, g[:, None], np.clip(g[:, None] + self.rates[None, :] * self.dmax, self.lo, self.hi))
             V[left] = (self.step_reward(t, g[:, None], nxt) + np.interp(nxt, g, V[left - 1])).max(axis=1)
         return V
 
@@ -100,6 +120,7 @@ class EpisodePlanner:
         """The planned omega after step ``t`` from ``omega``."""
         left = min(max(self.T - t, 1), self.T)
         nxt = np.clip(omega + self.rates * self.dmax, self.lo, self.hi)
+        nxt = self.reachable(t, np.full(len(self.rates), omega), nxt)
         q = self.step_reward(t, np.full_like(nxt, omega), nxt) + np.interp(nxt, self.grid, self.value[left - 1])
         best = q.max()
         near = q >= best - 1e-9

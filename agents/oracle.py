@@ -63,7 +63,10 @@ def reward_map(
         raise ValueError(f"spacing must be a positive number, got {spacing!r}")
     n = int(round((base.omega_max - base.omega_min) / d)) + 1
     omegas = np.linspace(base.omega_min, base.omega_max, max(n, 2))
-    key_src = json.dumps({"v": 1, "config": config_to_dict(base), "n": len(omegas)}, sort_keys=True, default=str)
+    fields = config_to_dict(base)
+    fields.pop("action_range")  # always None here (undisturbed_config); kept out so that the keys of maps cached
+    # before the setting existed still match
+    key_src = json.dumps({"v": 1, "config": fields, "n": len(omegas)}, sort_keys=True, default=str)
     key = hashlib.sha256(key_src.encode()).hexdigest()[:24]
     if key in _MAP_CACHE:
         return _MAP_CACHE[key]

@@ -14,8 +14,10 @@ from typing import Any
 
 import numpy as np
 
+from gear_env.env_terms import action_bounds
 from gear_env.io import parse_json_text
 
+from .baselines import OBS_DEMAND
 from .policy import BasePolicy
 from .runs import RunFolder, RunFolderError, check_space_compatible, read_vecnormalize_stats, space_from_dict
 
@@ -70,12 +72,17 @@ class ActionAdapter:
     evaluation settings. Omega is read from the raw observation (entry 0)."""
 
     def __init__(self, train_cfg: Any, eval_cfg: Any):
+        if train_cfg.action_mode == "limit" and eval_cfg.demand is None:
+            raise ValueError(
+                'a policy trained with action_mode "limit" sets a speed limit under a demand: evaluate it on a task '
+                "with a demand (the evaluation configuration has demand None)"
+            )
         self.tr = train_cfg
         self.ev = eval_cfg
 
     @staticmethod
     def needed(train_cfg: Any, eval_cfg: Any) -> bool:
-        keys = ("action_mode", "omega_min", "omega_max", "max_domega")
+        keys = ("action_mode", "omega_min", "omega_max", "max_domega", "action_range")
         return any(getattr(train_cfg, k) != getattr(eval_cfg, k) for k in keys)
 
     def __call__(self, observation: np.ndarray, actions: np.ndarray) -> np.ndarray:
@@ -88,13 +95,18 @@ class ActionAdapter:
         if tr.action_mode == "delta":
             target = w + a * tr.max_domega
         else:
-            target = tr.omega_min + 0.5 * (a + 1.0) * (tr.omega_max - tr.omega_min)
+            tlo, thi = action_bounds(tr)
+            target = tlo + 0.5 * (a + 1.0) * (thi - tlo)
+            if tr.action_mode == "limit":  # a speed limit: the drive follows the demand (observed) under it
+                demand = ev.omega_min + 0.5 * (obs2[:, OBS_DEMAND] + 1.0) * (ev.omega_max - ev.omega_min)
+                target = np.minimum(target, demand)
             target = np.clip(target, w - tr.max_domega, w + tr.max_domega)
         target = np.clip(target, ev.omega_min, ev.omega_max)
         if ev.action_mode == "delta":
             out = (target - w) / ev.max_domega
         else:
-            out = 2.0 * (target - ev.omega_min) / (ev.omega_max - ev.omega_min) - 1.0
+            elo, ehi = action_bounds(ev)
+            out = 2.0 * (target - elo) / (ehi - elo) - 1.0
         out = np.clip(out, -1.0, 1.0).astype(np.float32).reshape(-1, 1)
         return out[0] if single else out
 

@@ -386,8 +386,9 @@ class GearSpeedCore:
             self._set_plant(r, self.episodes[r].params_at(0) if changes else p, equilibrium=True)
         self.omega[rows] = w_init
         if cfg.action_delay:  # the drive holds the initial speed until the first action arrives
-            hold = 2.0 * (w_init - cfg.omega_min) / (cfg.omega_max - cfg.omega_min) - 1.0
-            self._pending[:, rows] = hold if cfg.action_mode == "target" else 0.0
+            alo, ahi = ET.action_bounds(cfg)
+            hold = 2.0 * (w_init - alo) / (ahi - alo) - 1.0
+            self._pending[:, rows] = 0.0 if cfg.action_mode == "delta" else hold
         self.hist[rows] = 0.0
         self.n_tol[rows] = TOL_N_START  # with `tol`: a fresh episode starts from the same step count
         pps = cfg.periods_per_step
@@ -456,7 +457,8 @@ class GearSpeedCore:
     def decode(self, rows: np.ndarray, actions: np.ndarray) -> np.ndarray:
         """Omega at the end of the next step for actions in [-1, 1] (rate-limited, clipped)."""
         out = np.empty(len(rows))
-        EK.decode_actions(self.omega[rows], actions, self.S, self.config.action_mode == "target", out)
+        demand = self._zeros[: len(rows)] if self.config.demand is None else self.demand(self.steps[rows], rows)
+        EK.decode_actions(self.omega[rows], actions, demand, self.S, ET.ACTION_CODES[self.config.action_mode], out)
         return out
 
     def step_rows(self, rows: np.ndarray, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

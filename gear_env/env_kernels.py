@@ -266,18 +266,24 @@ def post_step(rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, S, h
 
 
 @kernel
-def decode_actions(w0, actions, S, target_mode, out):
-    """omega at the end of the step for actions in [-1, 1]: delta (w0 + a max_domega) or target
-    mode (set-point T = lo + (a + 1)/2 (hi - lo); the drive's reference moves reference_filter x
-    (T - w0), then is rate-limited to max_domega); clipped to [lo, hi]."""
+def decode_actions(w0, actions, demand, S, mode, out):
+    """omega at the end of the step for actions in [-1, 1]. ``mode`` (``env_terms.ACTION_CODES``): 0 delta
+    (w0 + a max_domega); 1 target (set-point T = lo + (a + 1)/2 (hi - lo), [lo, hi] the action range); 2 limit
+    (T = min(demand, that value): the action is a speed limit and the drive follows ``demand`` under it). In
+    target and limit modes the drive's reference moves reference_filter x (T - w0), then is rate-limited to
+    max_domega. Clipped to [omega_min, omega_max]."""
     lo = S[P.omega_min]
     hi = S[P.omega_max]
+    alo = S[P.action_lo]
+    ahi = S[P.action_hi]
     dmax = S[P.max_domega]
     alpha = S[P.reference_filter]
     for j in range(w0.shape[0]):
         a = min(max(actions[j], -1.0), 1.0)
-        if target_mode:
-            t = lo + 0.5 * (a + 1.0) * (hi - lo)
+        if mode != 0:
+            t = alo + 0.5 * (a + 1.0) * (ahi - alo)
+            if mode == 2:
+                t = min(t, demand[j])
             if alpha != 1.0:
                 t = w0[j] + alpha * (t - w0[j])
             t = min(max(t, w0[j] - dmax), w0[j] + dmax)

@@ -225,7 +225,9 @@ STATE_CLIP = 1e6
 """Bound of the hidden-state entries of ``observation="full"`` (the kernels' divergence limit)."""
 MIN_STATIC_MESH_FORCE = 1e-6
 """Smallest static mesh force F_s [k_m0 b0] the env accepts (the default pair has 0.0275)."""
-ACTION_MODES = ("delta", "target")
+ACTION_MODES = ("delta", "target", "limit")
+ACTION_CODES = {mode: i for i, mode in enumerate(ACTION_MODES)}
+"""The action mode as the kernels take it (``env_kernels.decode_actions``): 0 delta, 1 target, 2 limit."""
 OBSERVATION_SETS = ("sensors", "full")
 DEMAND_PRESETS = ("steps", "ramp", "random")
 THROUGHPUT_MODES = ("all", "delivered")
@@ -284,6 +286,11 @@ def _initial_omega(label: str, v: Any, cfg: Any) -> Any:
 
 def _demand(label: str, v: Any, cfg: Any) -> Any:
     if v is None:
+        if cfg.action_mode == "limit":
+            raise ValueError(
+                'action_mode "limit" sets a speed limit under which the drive follows the demand: it needs a demand '
+                '(demand is None; give demand="random", "steps", "ramp" or a list of (t, omega) points)'
+            )
         return None
     if isinstance(v, str):
         return check_choice(label, v, DEMAND_PRESETS)
@@ -302,6 +309,26 @@ def _demand(label: str, v: Any, cfg: Any) -> Any:
             raise ValueError(f"{label} times must be non-decreasing; point {i} has t={t:g} < {pts[-1][0]:g}")
         pts.append((t, w))
     return tuple(pts)
+
+
+def _action_range(label: str, v: Any, cfg: Any) -> Any:
+    """None (the whole speed range) or a (lo, hi) band inside [omega_min, omega_max]."""
+    if v is None:
+        return None
+    from .tasks import pair
+
+    owner, name = label.rsplit(".", 1)
+    lo, hi = pair(owner, name, v, cfg.omega_min, cfg.omega_max)
+    if not hi > lo:
+        raise ValueError(f"{label} must be a band (lo, hi) with lo < hi, got {v!r}")
+    return (lo, hi)
+
+
+def action_bounds(cfg: Any) -> tuple[float, float]:
+    """The speeds (omega) that the actions -1 and +1 mean in target and limit modes: ``action_range`` or
+    [omega_min, omega_max]."""
+    r = cfg.action_range
+    return (float(cfg.omega_min), float(cfg.omega_max)) if r is None else (float(r[0]), float(r[1]))
 
 
 def _demand_segments(label: str, v: Any, cfg: Any) -> tuple[int, int]:
@@ -411,10 +438,16 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("omega_min", 0.1, real(0.0, 20.0, lo_open=True), "(0, 20]", "smallest admissible omega", kernel=float),
     Setting("omega_max", 3.0, _omega_max, "(omega_min, 20]", "largest admissible omega", kernel=float),
     Setting("max_domega", 0.05, _max_domega, "(0, max-min]", "largest omega change per step", kernel=float),
-    Setting("action_mode", "delta", choice(*ACTION_MODES), '"delta", "target"', "meaning of the action"),
+    Setting("action_mode", "delta", choice(*ACTION_MODES), '"delta", "target", "limit"',
+            "meaning of the action: a change of omega (delta), a speed set-point over [omega_min, omega_max] "
+            "(target), or a speed limit over that range under which the drive follows the demand (limit: "
+            "set-point min(demand, limit); needs a demand)"),
+    Setting("action_range", None, _action_range, "None, (lo, hi) in [omega_min, omega_max]",
+            "the speeds that the actions -1 and +1 mean in target and limit modes, linear between (None: "
+            "[omega_min, omega_max]); the observation keeps scaling omega over [omega_min, omega_max]"),
     Setting("reference_filter", 1.0, real(0.0, 1.0, lo_open=True), "(0, 1]",
-            "target mode: fraction of the set-point error the drive's reference closes per step (first-order "
-            "filter before the rate limit; 1: none; no effect in delta mode)", kernel=float),
+            "target and limit modes: fraction of the set-point error the drive's reference closes per step "
+            "(first-order filter before the rate limit; 1: none; no effect in delta mode)", kernel=float),
     # episode
     Setting("max_steps", 200, integer(1, 1_000_000), "[1, 1e6]", "episode length (truncation)", kernel=float),
     Setting("initial_omega", None, _initial_omega, "None, number, (lo, hi)",
@@ -602,8 +635,13 @@ C = _slots("CostColumns", [t.name for t in COSTS], len(REWARDS))
 """Info column of each cost term: ``I[r, C.<name>]``."""
 IX = _slots("InfoColumns", [k for k, _ in INFO_COLUMNS[len(REWARDS) + len(COSTS) :]], len(REWARDS) + len(COSTS))
 """Info column of every non-term key (``IX.omega``; ``IX.cost`` when a cost term exists)."""
-P = _slots("SettingSlots", [s.name for s in all_settings() if s.kernel is not None])
-"""Slot of each kernel setting in the settings vector ``S``: ``S[P.w_chaos]``."""
+DERIVED_SLOTS: tuple[tuple[str, Callable[[Any], float]], ...] = (
+    ("action_lo", lambda cfg: action_bounds(cfg)[0]),
+    ("action_hi", lambda cfg: action_bounds(cfg)[1]),
+)
+"""Kernel slots computed from several settings: (name, value of a validated config)."""
+P = _slots("SettingSlots", [s.name for s in all_settings() if s.kernel is not None] + [n for n, _ in DERIVED_SLOTS])
+"""Slot of each kernel setting in the settings vector ``S``: ``S[P.w_chaos]``; then :data:`DERIVED_SLOTS`."""
 N_SETTINGS = len(P)
 F = _slots("FeatureColumns", [o.name for o in OBSERVATIONS])
 """Column of each observation feature in the kernels' feature matrix (the observation gathers its entries)."""
@@ -672,6 +710,8 @@ class TaskTerms:
         for s in self.settings:
             if s.kernel is not None:
                 S[getattr(P, s.name)] = float(s.kernel(getattr(cfg, s.name)))
+        for name, value in DERIVED_SLOTS:
+            S[getattr(P, name)] = float(value(cfg))
         return S
 
     # -------------------------------------------------------------- observation

@@ -41,11 +41,12 @@ from typing import Any
 import numpy as np
 
 from .env_config import GearSpeedConfig
+from .env_terms import action_bounds
 
 MAX_SCHEDULE_BYTES = 16 * 1024 * 1024
 """Largest schedule file read (bytes); a larger one is refused before it is read."""
 
-ACTION_FIELDS = ("action_mode", "max_domega", "reference_filter", "omega_min", "omega_max")
+ACTION_FIELDS = ("action_mode", "max_domega", "reference_filter", "omega_min", "omega_max", "action_range")
 """The settings that decide what an action means: a schedule bound to one task runs on another only if
 they agree."""
 
@@ -292,11 +293,12 @@ class SpeedSchedule:
         lo, hi = cfg.omega_min, cfg.omega_max
         obs = np.asarray(obs, float).reshape(-1, np.shape(obs)[-1])
         target = np.asarray(self.omega_at(np.asarray(t, float) + 1.0), float).reshape(-1)
-        if cfg.action_mode == "target":
+        if cfg.action_mode != "delta":  # a set-point (target) or a limit the drive follows the demand under
             if cfg.reference_filter != 1.0:  # the set-point whose filtered step lands on the target
                 w = lo + 0.5 * (obs[:, 0] + 1.0) * (hi - lo)
                 target = np.clip(w + (target - w) / cfg.reference_filter, lo, hi)
-            a = 2.0 * (target - lo) / (hi - lo) - 1.0
+            alo, ahi = action_bounds(cfg)
+            a = 2.0 * (target - alo) / (ahi - alo) - 1.0
         else:
             w = lo + 0.5 * (obs[:, 0] + 1.0) * (hi - lo)
             diff = target - w

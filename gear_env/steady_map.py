@@ -71,7 +71,7 @@ class SteadyRewardMap:
 def undisturbed_config(cfg: GearSpeedConfig) -> GearSpeedConfig:
     """``cfg`` as a steady map sees it: the undisturbed plant (no randomisation, demand, plant family,
     duty cycle, wear change, dead time or sensor noise; all throughput paid) under delta actions without a
-    reference filter, so that every task built on the same physics and weights shares one map."""
+    reference filter or action range, so that every task built on the same physics and weights shares one map."""
     return cfg.replace(
         randomize_params=False,
         demand=None,
@@ -79,6 +79,7 @@ def undisturbed_config(cfg: GearSpeedConfig) -> GearSpeedConfig:
         plant_family=None,
         duty_cycle=None,
         action_mode="delta",
+        action_range=None,
         reference_filter=1.0,
         wear=None,
         action_delay=0,

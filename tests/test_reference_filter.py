@@ -16,7 +16,8 @@ SHORT = {"periods_per_step": 8, "warmup_periods": 16, "max_steps": 40}
 
 def _decode(cfg, w0, a):
     out = np.empty(len(w0))
-    EK.decode_actions(np.asarray(w0, float), np.asarray(a, float), cfg.TERMS.settings_vector(cfg), True, out)
+    w0 = np.asarray(w0, float)
+    EK.decode_actions(w0, np.asarray(a, float), np.zeros_like(w0), cfg.TERMS.settings_vector(cfg), 1, out)
     return out
 
 
@@ -67,7 +68,7 @@ def test_no_effect_in_delta_mode():
     cfg = GearSpeedConfig(reference_filter=0.3)  # action_mode "delta"
     w0, a = np.array([1.0, 2.0]), np.array([0.5, -1.0])
     out = np.empty(2)
-    EK.decode_actions(w0, a, cfg.TERMS.settings_vector(cfg), False, out)
+    EK.decode_actions(w0, a, np.zeros(2), cfg.TERMS.settings_vector(cfg), 0, out)
     np.testing.assert_allclose(out, w0 + a * cfg.max_domega, rtol=0, atol=1e-15)
 
 
