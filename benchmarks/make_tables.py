@@ -130,14 +130,13 @@ def fmt(v: float) -> str:
     if a >= 100:
         return f"{v:,.0f}"
     if a >= 0.01 or a == 0:
-        return f"{v:.3g}"
+        return f"{v:#.3g}".rstrip(".")  # 17.0, 2.19, 0.450: three significant digits shown
     return f"{v:.1e}"
 
 
 def _range(vals: Sequence[float]) -> str:
     lo, hi = min(vals), max(vals)
-    text = fmt(lo) if fmt(lo) == fmt(hi) else f"{fmt(lo)}-{fmt(hi)}"
-    return text + (f" (n={len(vals)})" if len(vals) > 1 else "")
+    return fmt(lo) if fmt(lo) == fmt(hi) else f"{fmt(lo)}-{fmt(hi)}"
 
 
 def _load_cell(load: dict[str, Any]) -> str:
