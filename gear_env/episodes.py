@@ -24,8 +24,9 @@ def run_episode(
     """Roll out one episode of ``policy`` (``predict(obs, state, episode_start, deterministic)``);
     ``on_step``, if given, is called with each step's ``info`` (e.g. to sum reward terms). A
     :class:`~gear_env.schedules.SpeedSchedule` is bound to ``env``'s task first (one bound to a task whose
-    actions mean something else is refused with a ``ValueError``)."""
-    if isinstance(policy, SpeedSchedule):
+    actions mean something else is refused with a ``ValueError``); so is any policy with a ``bind(config)``
+    method (the scripted policies of ``agents``)."""
+    if isinstance(policy, SpeedSchedule) or callable(getattr(policy, "bind", None)):
         policy = policy.bind(env.unwrapped.config)
     obs, info = env.reset(seed=seed)
     if hasattr(policy, "observe_episode"):  # a privileged baseline (the oracle): it is told the scenario
