@@ -71,3 +71,11 @@ def test_unbound_actions_follow_the_task():
     assert a_v0[0, 0] == pytest.approx(-0.01 / v0.max_domega, rel=1e-5)  # delta mode: the change of omega
     ref = mid - 0.01 / v1.reference_filter  # target mode: the set-point whose filtered step lands on w
     assert a_v1[0, 0] == pytest.approx(2 * (ref - v1.omega_min) / (v1.omega_max - v1.omega_min) - 1, rel=1e-5)
+
+
+def test_evaluate_policies_binds_an_unbound_policy_to_its_task():
+    from gear_env.evaluation import evaluate_policies
+
+    cfg = task_config("GearSpeed-v0", FAST)
+    rep = evaluate_policies({"free": ConstantSpeed(1.3), "built": ConstantSpeed(1.3, cfg)}, cfg, episodes=2, seed=3)
+    assert [e.ret for e in rep.episodes["free"]] == [e.ret for e in rep.episodes["built"]]
