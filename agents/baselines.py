@@ -85,9 +85,12 @@ class ScriptedPolicy(BasePolicy):
             if mine == theirs:
                 return self
             args, kwargs = self._ctor
-            call = inspect.signature(type(self)).bind_partial(*args, **kwargs)
+            sig = inspect.signature(type(self).__init__)
+            if "config" not in sig.parameters:
+                raise TypeError(f"{type(self).__name__} takes no config=, so it cannot be rebuilt for a task")
+            call = sig.bind_partial(None, *args, **kwargs)  # None: self
             call.arguments["config"] = theirs
-            return type(self)(*call.args, **call.kwargs)
+            return type(self)(*call.args[1:], **call.kwargs)
         fields = (*ACTION_FIELDS, "action_delay")
         diff = [
             f"{k} {getattr(mine, k)!r} vs {getattr(theirs, k)!r}"
