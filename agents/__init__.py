@@ -1,4 +1,4 @@
-"""Agents for GearSpeed-v0: PPO training (:mod:`agents.ppo`), scripted baselines
+"""Agents for the GearSpeed tasks: PPO training (:mod:`agents.ppo`), scripted baselines
 (:mod:`agents.baselines`), the oracle (:mod:`agents.oracle`), trained-policy loading
 (:mod:`agents.trained`), run folders (:mod:`agents.runs`), the comparison report
 (:mod:`agents.report`) and the policy registry (:func:`agents.registry.resolve_policy`) through

@@ -1,10 +1,17 @@
-"""Scripted speed policies for GearSpeed-v0 with the SB3 ``predict`` interface.
+"""Scripted speed policies for the GearSpeed tasks with the SB3 ``predict`` interface.
 
 Every policy here reads only the observation (omega is observation[0], scaled linearly from
 [omega_min, omega_max] to [-1, 1]; the vibration features follow ``gear_env.env_core.SENSOR_NAMES``)
 and returns actions for either action mode of the environment, so PPO models, these baselines,
 the oracle and the schedules of ``gear_env.schedules`` are all evaluated by the same code
 (``gear_env.evaluation.evaluate_policies``).
+
+**Which task.** What an action means depends on the task (a change of omega on GearSpeed-v0, a filtered
+speed reference on GearSpeed-v1), so a policy is built for one: ``config=`` takes a GearSpeedConfig or a
+dict of settings of :data:`agents.envs.GEAR_ENV_ID` (GearSpeed-v1). A policy built without ``config=``
+follows the task it runs on: ``evaluate_policies`` / ``run_episode`` call :meth:`ScriptedPolicy.bind`
+with the environment's config, which rebuilds it for that task; until then it acts for GearSpeed-v1. A
+policy built with ``config=`` and run on a task whose actions mean something else is refused.
 
 * :class:`ConstantSpeed` - go to a fixed omega at the maximum rate and hold it ("constant:1.2";
   "constant-best" uses the omega of the best steady reward, found by :func:`best_constant_omega`).
@@ -16,6 +23,7 @@ the oracle and the schedules of ``gear_env.schedules`` are all evaluated by the 
 
 from __future__ import annotations
 
+import inspect
 from typing import Any
 
 import numpy as np
@@ -41,8 +49,14 @@ class ScriptedPolicy(BasePolicy):
 
     name = "scripted"
 
+    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
+        self = super().__new__(cls)
+        self._ctor = (args, kwargs)  # the constructor's arguments: bind() rebuilds an unbound policy with them
+        return self
+
     def __init__(self, config: Any = None):
         self.config = config
+        self.bound = config is not None  # built for a task; unbound ones follow the task they run on (bind)
         cp = control_parameters(config)
         self.omega_min = float(cp["omega_min"])
         self.omega_max = float(cp["omega_max"])
@@ -55,6 +69,42 @@ class ScriptedPolicy(BasePolicy):
         self.action_delay = int(cp.get("action_delay", 0))
         self.sensor_noise = float(cp.get("sensor_noise", 0.0))
         self._decoder = None  # the environment's own action decoder, built on the first need (omega_after)
+
+    def bind(self, config: Any) -> ScriptedPolicy:
+        """This policy for the task whose (GearSpeedConfig) ``config`` it runs on.
+
+        Built without ``config=``: returns ``self`` if ``config`` is the default task's configuration, else
+        the policy rebuilt with the same arguments and ``config=config``. Built with ``config=``: returns
+        ``self`` if ``config`` gives actions the same meaning (``gear_env.schedules.ACTION_FIELDS`` and the
+        actuator dead time), else raises ``ValueError`` naming the settings that differ."""
+        from gear_env.schedules import ACTION_FIELDS
+
+        from .envs import GEAR_ENV_ID, make_config
+
+        mine, theirs = make_config(GEAR_ENV_ID, self.config), make_config(GEAR_ENV_ID, config)
+        if not self.bound:
+            if mine == theirs:
+                return self
+            args, kwargs = self._ctor
+            sig = inspect.signature(type(self).__init__)
+            if "config" not in sig.parameters:
+                raise TypeError(f"{type(self).__name__} takes no config=, so it cannot be rebuilt for a task")
+            call = sig.bind_partial(None, *args, **kwargs)  # None: self
+            call.arguments["config"] = theirs
+            return type(self)(*call.args[1:], **call.kwargs)
+        fields = (*ACTION_FIELDS, "action_delay")
+        diff = [
+            f"{k} {getattr(mine, k)!r} vs {getattr(theirs, k)!r}"
+            for k in fields
+            if getattr(mine, k) != getattr(theirs, k)
+        ]
+        if diff:
+            raise ValueError(
+                f"policy {self.name!r} was built for a task whose actions mean something else than on this one "
+                f"({'; '.join(diff)}): build it with config= the task it runs on (e.g. config=env.unwrapped.config), "
+                "or without config= to let the evaluation bind it"
+            )
+        return self
 
     # ---- conversions ----------------------------------------------------------------------------
     def omega_from_obs(self, obs: np.ndarray) -> np.ndarray:

@@ -1,10 +1,11 @@
 """Environment construction for training and evaluation: configs to/from JSON, vector envs for SB3.
 
-The environment is ``GearSpeed-v0`` (``gear_env.env.GearSpeedEnv`` with its frozen
-``GearSpeedConfig``); its native vector form ``gear_env.vector_env.GearSpeedVectorEnv`` steps every
-sub-environment in one numba call and is presented to stable-baselines3 through the adapter in
-that module. Any other Gymnasium id (e.g. ``Pendulum-v1``) is accepted as a stand-in so the
-training plumbing can be tested without the gear model; it is wrapped in SB3's ``DummyVecEnv``.
+The environments are the GearSpeed tasks (``gear_env.env.GearSpeedEnv`` with the task's frozen
+``GearSpeedConfig``; :data:`GEAR_ENV_ID`, GearSpeed-v1, where no task is given); their native vector
+form ``gear_env.vector_env.GearSpeedVectorEnv`` steps every sub-environment in one numba call and is
+presented to stable-baselines3 through the adapter in that module. Any other Gymnasium id (e.g.
+``Pendulum-v1``) is accepted as a stand-in so the training plumbing can be tested without the gear
+model; it is wrapped in SB3's ``DummyVecEnv``.
 """
 
 from __future__ import annotations
@@ -18,7 +19,9 @@ from typing import Any
 
 import numpy as np
 
-GEAR_ENV_ID = "GearSpeed-v0"
+GEAR_ENV_ID = "GearSpeed-v1"
+"""The task where none is given (``config=None`` of a policy or an oracle, ``TrainOptions.env_id``); the
+CLI's default too (``gear_env.cli.common.DEFAULT_ENV``)."""
 GEAR_ENV_IDS = ("GearSpeed-v0", "GearSpeed-v1", "GearSpeedDemand-v0", "GearSpeedDemandHard-v0")
 """The registered gear tasks (``gear_env.tasks.TASK_SETTINGS``): one config class, different settings."""
 
@@ -64,8 +67,9 @@ def _jsonable(obj: Any) -> Any:
 
 
 def make_config(env_id: str, cfg: Any = None) -> Any:
-    """The config object the environment takes: a ``GearSpeedConfig`` for GearSpeed-v0 (from a
-    dict, an existing config or None = defaults), a plain dict for stand-in environments."""
+    """The config object the environment takes: a ``GearSpeedConfig`` for a gear task (from a dict of
+    settings over the task's own, an existing config or None = the task's settings), a plain dict for
+    stand-in environments."""
     if env_id not in GEAR_ENV_IDS:
         return dict(cfg or {})
     cls = _config_class()

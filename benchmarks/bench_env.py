@@ -1,6 +1,6 @@
 """Speed of GearSpeed-v0: single env, vector env at 1/8/64 sub-envs, and CartPole-v1 for scale.
 
-Run:  taskset -c 0 python benchmarks/bench_env.py [--seconds 3] [--trade]
+Run:  taskset -c 0 python benchmarks/bench_env.py [--seconds 3] [--rounds 1] [--trade] [--json FILE]
 
 "physics alone" times the two batch kernels on the same 64 initial states: the SIMD lanes kernel
 the vector env uses and the scalar one (one system after the other) it replaced.
@@ -141,8 +141,14 @@ def bench_cartpole(seconds: float) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=3.0, help="time per measurement (default 3 s)")
+    ap.add_argument("--rounds", type=int, default=1, help="interleaved rounds of every measurement (default 1)")
     ap.add_argument("--trade", action="store_true", help="also time other control intervals / step sizes")
+    ap.add_argument("--json", metavar="FILE", help="also write a JSON record (benchmarks/make_tables.py reads it)")
     args = ap.parse_args()
+    from bench_record import Record, check_json_target
+
+    check_json_target(args.json)
+    rec = Record("bench_env")
     s = args.seconds
     try:
         cores = len(os.sched_getaffinity(0))
@@ -154,20 +160,36 @@ def main() -> None:
         f"load average {load:.2f}; rates are per second of this process's CPU time"
     )
     print("default control step: 24 mesh periods x 64 Newmark steps, dynamic backlash")
-    single = bench_single(s)
-    print(f"single env                : {single:9.0f} steps/s")
+    rates: dict[str, list[float]] = {}
+    for r in range(args.rounds):
+        if args.rounds > 1:
+            print(f"-- round {r + 1}")
+        single = bench_single(s)
+        rates.setdefault("single", []).append(single)
+        print(f"single env                : {single:9.0f} steps/s")
+        for n in (1, 8, 64):
+            v = bench_vector(n, s)
+            rates.setdefault(f"vector{n}", []).append(v)
+            print(f"vector env, {n:2d} sub-envs   : {v:9.0f} env-steps/s")
+        for ramp, what in ((0.0, "omega held   "), (0.02, "omega ramping")):
+            kern = bench_kernel(64, s, lanes=True, ramp=ramp)
+            scal = bench_kernel(64, s, lanes=False, ramp=ramp)
+            rates.setdefault(what.strip(), []).append(kern / scal)
+            print(
+                f"physics alone, 64, {what}: SIMD lanes {kern:6.0f}, scalar {scal:6.0f} env-steps/s "
+                f"(SIMD / scalar = {kern / scal:.2f}x)"
+            )
+        cp = bench_cartpole(s)
+        rates.setdefault("cartpole", []).append(cp)
+        rates.setdefault("ratio", []).append(single / cp)
+        print(f"CartPole-v1 (gym.make)    : {cp:9.0f} steps/s   (GearSpeed single / CartPole = {single / cp:.3f})")
+    rec.add("GearSpeed-v0, single env (24 periods x 64 steps per step)", "steps/s", rates["single"])
     for n in (1, 8, 64):
-        v = bench_vector(n, s)
-        print(f"vector env, {n:2d} sub-envs   : {v:9.0f} env-steps/s")
-    for ramp, what in ((0.0, "omega held   "), (0.02, "omega ramping")):
-        kern = bench_kernel(64, s, lanes=True, ramp=ramp)
-        scal = bench_kernel(64, s, lanes=False, ramp=ramp)
-        print(
-            f"physics alone, 64, {what}: SIMD lanes {kern:6.0f}, scalar {scal:6.0f} env-steps/s "
-            f"(SIMD / scalar = {kern / scal:.2f}x)"
-        )
-    cp = bench_cartpole(s)
-    print(f"CartPole-v1 (gym.make)    : {cp:9.0f} steps/s   (GearSpeed single / CartPole = {single / cp:.3f})")
+        rec.add(f"GearSpeed-v0, vector env, {n} sub-env{'s' if n > 1 else ''}", "env-steps/s", rates[f"vector{n}"])
+    for what in ("omega held", "omega ramping"):
+        rec.add(f"physics alone, 64 sub-envs, {what}: SIMD lanes / scalar", "x", rates[what])
+    rec.add("Gymnasium CartPole-v1, same loop", "steps/s", rates["cartpole"])
+    rec.add("GearSpeed-v0 single env / CartPole-v1", "x", rates["ratio"])
     if args.trade:
         print("\ntrade-off (vector env, 8 sub-envs, env-steps/s; single env steps/s):")
         for pps, nsp, model in ((24, 64, "dynamic"), (16, 64, "dynamic"), (8, 64, "dynamic"), (24, 32, "dynamic"),
@@ -178,6 +200,8 @@ def main() -> None:
             print(
                 f"  periods_per_step={pps:2d} steps_per_period={nsp:3d} {model:8s}: vector {v:7.0f}  single {one:7.0f}"
             )
+    if args.json:
+        rec.write(args.json)
 
 
 if __name__ == "__main__":

@@ -16,7 +16,7 @@ Prints:
    rtol = 1e-1 ... 1e-7, and the paired ratio of the smallest N and the loosest rtol that reach an error
    of 1e-3 (the accuracy the tests require) and 1e-4.
 
-    python benchmarks/bench_simulator.py [--work-precision]    (pins itself to one core)
+    python benchmarks/bench_simulator.py [--work-precision] [--json FILE]    (pins itself to one core)
     python benchmarks/bench_simulator.py --quick
 """
 
@@ -371,7 +371,12 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="also print work-precision data (Newmark N ladder vs DOP853 rtol ladder)",
     )
+    ap.add_argument("--json", metavar="FILE", help="also write a JSON record (benchmarks/make_tables.py reads it)")
     args = ap.parse_args(argv)
+    from bench_record import Record, check_json_target
+
+    check_json_target(args.json)
+    rec = Record("bench_simulator", argv)
     if not args.no_pin and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     import numba
@@ -391,6 +396,8 @@ def main(argv: list[str] | None = None) -> int:
         f"cached      : import {cached[0]:.2f} s, first calls (load from disk cache) {cached[1]:.2f} s, "
         f"warm calls {cached[2] * 1e3:.2f} ms"
     )
+    rec.add("first calls of simulate + GearSimulator, both models, from an empty numba cache", "s", [fresh[1]])
+    rec.add("the same from the disk cache", "s", [cached[1]])
 
     periods = 2000 if args.quick else 10000
     omegas = (0.45, 1.2, 2.8)
@@ -404,6 +411,11 @@ def main(argv: list[str] | None = None) -> int:
             cells = "  ".join(f"omega={w}: {r:9,.0f}" for w, r in zip(omegas, rr, strict=True))
             ns_step = 1e9 / (np.mean(rr) * n)
             print(f"{model:8s} {clock} {cells}  mesh periods/s (mean {np.mean(rr):,.0f}; {ns_step:.0f} ns/step)")
+        rec.add(
+            f"simulator, {model} model, {n} steps/period (omega {', '.join(map(str, omegas))}; CPU)",
+            "mesh periods/s",
+            [r[1] for r in rates],
+        )
         batch_w = np.linspace(0.45, 2.8, 16)
         rb = throughput_batch(model, batch_w, periods // 10, n)
         mean_cpu = np.mean([r[1] for r in rates])
@@ -411,11 +423,15 @@ def main(argv: list[str] | None = None) -> int:
             f"{model:8s} CPU  simulate_batch, 16 omegas in 0.45-2.8 stepped together (SIMD): {rb:9,.0f} mesh periods/s "
             f"({rb / mean_cpu:.2f}x one trajectory after the other)"
         )
+        rec.add(f"simulate_batch, 16 runs stepped together (SIMD), {model} model", "mesh periods/s", [rb])
+        rec.add(f"simulate_batch / one run after the other, {model} model", "x", [rb / mean_cpu])
 
     print("\n== speed-up over solve_ivp (DOP853) at equal accuracy, same start state and periods")
     work = [("dynamic", 1.2), ("dynamic", 2.8), ("constant", 1.2), ("constant", 2.8)]
     if args.quick:
         work = work[:2]
+    vs_ivp: dict[str, list[float]] = {"plain": [], "events": []}
+    at_bound: dict[str, list[float]] = {"plain": [], "events": []}
     for model, w in work:
         r = ratio_vs_solve_ivp(model, w, 20 if args.quick else 50, n)
         print(
@@ -436,6 +452,7 @@ def main(argv: list[str] | None = None) -> int:
                     f"    {what}: rtol {s['rtol']:.1e} -> error {s['err']:.2e}, {s['time'] * 1e3:8.1f} ms CPU, "
                     f"{s['nfev']} RHS evals -> Newmark is {s['ratio']:,.0f}x faster"
                 )
+                vs_ivp[label].append(s["ratio"])
     print("\n== the same work at the tests' accuracy bound (1e-3 b0): smallest N and loosest rtol reaching it")
     for model, w in work:
         r = ratio_at_bound(model, w, 20 if args.quick else 50)
@@ -451,6 +468,15 @@ def main(argv: list[str] | None = None) -> int:
                 else f"DOP853 {label}: not reached"
             )
         print(f"{model:8s} omega={w}: Newmark N={r['n']} (error {r['err_newmark']:.1e}); " + "; ".join(cells))
+        for label in ("events", "plain"):
+            if r[label]:
+                at_bound[label].append(r[label]["ratio"])
+    cases = ", ".join(f"{m} {w}" for m, w in work)
+    for label, what in (("events", "DOP853 with event location"), ("plain", "DOP853 straight through kinks")):
+        if vs_ivp[label]:
+            rec.add(f"Newmark ({n} steps) vs {what} at equal accuracy ({cases})", "x", vs_ivp[label])
+        if at_bound[label]:
+            rec.add(f"the same, both at the tests' accuracy bound 1e-3 b0, vs {what}", "x", at_bound[label])
     if args.batch_ratio:
         print(
             f"\n== a fresh-start diagram's work: {len(BATCH_OMEGAS)} omegas in the period-1 bands "
@@ -470,10 +496,15 @@ def main(argv: list[str] | None = None) -> int:
                     f"{x['t_single'] * 1e3:5.2f} ms -> {x['single']:,.0f}x "
                     f"(largest Newmark error {r['err_max']:.1e} b0)"
                 )
+                rec.add(
+                    f"fresh-start diagram's work, {model} model, simulate_batch vs DOP853 {label}", "x", [x["batch"]]
+                )
     if args.work_precision:
         print("\n== work-precision: error (b0) / CPU time per run; smallest N and loosest rtol reaching an error bound")
         for model, w in work:
             print_work_precision(model, w, 20 if args.quick else 50)
+    if args.json:
+        rec.write(args.json)
     return 0
 
 

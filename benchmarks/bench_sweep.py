@@ -1,6 +1,6 @@
 """Benchmark: the 300-point bifurcation diagrams of both models on 1 and 2 local workers.
 
-    python benchmarks/bench_sweep.py [--points 300] [--transient 300] [--periods 200] [--lyapunov-cost]
+    python benchmarks/bench_sweep.py [--points 300] [--transient 300] [--periods 200] [--lyapunov-cost] [--json FILE]
 
 Each sweep: omega in [0.05, 3], forward, 300 transient + 200 recorded mesh periods per omega,
 classification (with confirmation windows) and the largest Lyapunov exponent included.
@@ -30,7 +30,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lyapunov-cost", action="store_true", help="also time the serial sweeps without Lyapunov")
     ap.add_argument("--steps-study", action="store_true", help="only print the low-omega steps-per-period study")
     ap.add_argument("--lyapunov-study", action="store_true", help="only print finite-time Lyapunov estimates")
+    ap.add_argument("--json", metavar="FILE", help="also write a JSON record (benchmarks/make_tables.py reads it)")
     args = ap.parse_args(argv)
+    from bench_record import Record, check_json_target
+
+    check_json_target(args.json)
+    rec = Record("bench_sweep", argv)
     if args.steps_study:
         return steps_study()
     if args.lyapunov_study:
@@ -89,6 +94,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{args.workers} workers {model:8s}: {r.summary()}; regime agrees with serial at {100 * agree:.1f} %")
     print(f"{args.workers} workers both    : {t_par:6.1f} s")
     print(f"speed-up 1 -> {args.workers} workers: {t_serial / t_par:.2f} (wall clock)")
+    what = f"{args.points} points x 2 models, {args.transient} + {args.periods} periods, classification + Lyapunov"
+    rec.add(f"sweep: {what}, 1 worker", "s wall", [t_serial])
+    rec.add(f"sweep: the same on {args.workers} workers", "s wall", [t_par])
+    rec.add(f"sweep speed-up 1 -> {args.workers} workers (wall clock)", "x", [t_serial / t_par])
     if cpu_workers and all(c > 0 for c in cpu_workers):
         busiest = max(cpu_workers)
         print(
@@ -96,6 +105,9 @@ def main(argv: list[str] | None = None) -> int:
             + ", ".join(f"{c:.1f}" for c in cpu_workers)
             + f"; CPU-bound speed-up (serial CPU / busiest worker CPU): {cpu / busiest:.2f}"
         )
+        rec.add(f"sweep speed-up 1 -> {args.workers} workers (serial CPU / busiest worker CPU)", "x", [cpu / busiest])
+    if args.json:
+        rec.write(args.json)
     return 0
 
 

@@ -1,6 +1,6 @@
 """Speed of each registered task: env steps per second, single env and vector env (8 sub-envs).
 
-Run:  taskset -c 0 python benchmarks/bench_tasks.py [--seconds 3]
+Run:  taskset -c 0 python benchmarks/bench_tasks.py [--seconds 3] [--json FILE]
 
 Same method as benchmarks/bench_env.py (whose helpers it uses): random actions (seeded), auto-reset
 included, compile time excluded (a warm-up runs first), rates per second of this process's CPU time,
@@ -31,7 +31,12 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=3.0, help="CPU seconds per measurement")
     ap.add_argument("--rounds", type=int, default=2, help="interleaved rounds")
+    ap.add_argument("--json", metavar="FILE", help="also write a JSON record (benchmarks/make_tables.py reads it)")
     args = ap.parse_args()
+    from bench_record import Record, check_json_target
+
+    check_json_target(args.json)
+    rec = Record("bench_tasks")
     from gear_env.env_config import task_config
     from gear_env.tasks import TASK_SETTINGS
 
@@ -52,7 +57,11 @@ def main() -> int:
             f"| {env_id} | {pps} | {min(s):,.0f}-{max(s):,.0f} | {min(v):,.0f}-{max(v):,.0f} | "
             f"{pps * min(v):,.0f}-{pps * max(v):,.0f} |"
         )
+        rec.add(f"{env_id}, single env ({pps} periods/step)", "steps/s", s)
+        rec.add(f"{env_id}, vector env, 8 sub-envs", "env-steps/s", v)
     print(f"load average after: {os.getloadavg()}")
+    if args.json:
+        rec.write(args.json)
     return 0
 
 

@@ -7,12 +7,13 @@ the cost the CPU time of the steps (the settings interleaved per seed, so drift 
 
     python benchmarks/env_tol.py                 # 10 seeds x 20 steps, about a minute
     python benchmarks/env_tol.py --seeds 20 --steps 40 --json env_tol.json
+
+``--json FILE`` writes the run's record (benchmarks/bench_record.py; benchmarks/make_tables.py reads it).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 import numpy as np
@@ -48,8 +49,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--env", default="GearSpeedDemand-v0")
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--steps", type=int, default=20)
-    ap.add_argument("--json", metavar="PATH")
+    ap.add_argument("--json", metavar="FILE", help="also write a JSON record (benchmarks/make_tables.py reads it)")
     args = ap.parse_args(argv)
+    from bench_record import Record, check_json_target
+
+    check_json_target(args.json)
+    rec = Record("env_tol", argv)
     rng = np.random.default_rng(0)
     actions = np.clip(np.cumsum(rng.normal(0, 0.15, args.steps)) * 0.5 + 0.2, -1, 1)
     for kw in SETTINGS.values():  # compile and warm every path first
@@ -66,16 +71,21 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.env}: {args.seeds} episodes x {args.steps} steps; error = max |feature - 1024-step feature|")
     print("| setting | median error | max error | CPU per step [ms] | CPU vs 64 steps |")
     print("|---|---:|---:|---:|---:|")
-    out = {}
     for name in SETTINGS:
         e = np.array(err[name])
         ms = 1e3 * cpu[name] / (args.seeds * args.steps)
         print(f"| {name} | {np.median(e):.1e} | {e.max():.1e} | {ms:.2f} | {cpu[name] / base:.2f}x |")
-        out[name] = {"median_error": float(np.median(e)), "max_error": float(e.max()), "cpu_ms_per_step": ms}
+        rec.add(
+            f"{args.env}, {name}: feature error vs 1024 steps, median over {args.seeds} episodes",
+            "log1p units",
+            [float(np.median(e))],
+            note=f"max {e.max():.1e}",
+        )
+        rec.add(
+            f"{args.env}, {name}: CPU per env step", "ms", [ms], note=f"{cpu[name] / base:.2f}x the 64-step default"
+        )
     if args.json:
-        from gear_env.io import atomic_write_text
-
-        atomic_write_text(args.json, json.dumps(out, indent=1) + "\n")
+        rec.write(args.json)
     return 0
 
 

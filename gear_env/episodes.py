@@ -18,15 +18,23 @@ from .report import EpisodeResult, EvaluationReport
 from .schedules import SpeedSchedule
 
 
+def _bind(policy: Any, config: GearSpeedConfig) -> Any:
+    """``policy`` for the task ``config``: a schedule or any policy with a ``bind(config)`` method is bound
+    (rebuilt for the task if it was built without one, refused if built for another); others as they are."""
+    if isinstance(policy, SpeedSchedule) or callable(getattr(policy, "bind", None)):
+        return policy.bind(config)
+    return policy
+
+
 def run_episode(
     env: Any, policy: Any, seed: int | None, on_step: Callable[[dict[str, Any]], None] | None = None
 ) -> EpisodeResult:
     """Roll out one episode of ``policy`` (``predict(obs, state, episode_start, deterministic)``);
     ``on_step``, if given, is called with each step's ``info`` (e.g. to sum reward terms). A
     :class:`~gear_env.schedules.SpeedSchedule` is bound to ``env``'s task first (one bound to a task whose
-    actions mean something else is refused with a ``ValueError``)."""
-    if isinstance(policy, SpeedSchedule):
-        policy = policy.bind(env.unwrapped.config)
+    actions mean something else is refused with a ``ValueError``); so is any policy with a ``bind(config)``
+    method (the scripted policies of ``agents``)."""
+    policy = _bind(policy, env.unwrapped.config)
     obs, info = env.reset(seed=seed)
     if hasattr(policy, "observe_episode"):  # a privileged baseline (the oracle): it is told the scenario
         policy.observe_episode(env.unwrapped.episode)
@@ -101,6 +109,7 @@ def evaluate_policies(
     for name, pol in policies.items():
         if not hasattr(pol, "predict"):
             raise ValueError(f"policy {name!r} has no predict(obs, state, episode_start, deterministic) method")
+        pol = _bind(pol, cfg)  # once, not per episode (an unbound oracle is rebuilt for the task)
         out[name] = [run_episode(env, pol, int(seed) + k) for k in range(episodes)]
     if reference is None and "oracle" in out:
         reference = "oracle"

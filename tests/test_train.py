@@ -22,6 +22,7 @@ TINY_PPO = {"n_steps": 32, "batch_size": 64, "n_epochs": 2, "net_arch": [16, 16]
 def _opts(out, **kw):
     base = dict(
         out=str(out),
+        env_id="GearSpeed-v0",  # these tests check v0's delta-mode actions (TrainOptions' default is GearSpeed-v1)
         env_config=FAST_ENV,
         timesteps=256,
         num_envs=4,
