@@ -103,8 +103,10 @@ class GearSpeedEnv(gym.Env):
     a * max_domega. ``action_mode="target"``: target omega = omega_min + (a + 1)/2 (omega_max -
     omega_min), approached at most max_domega per step; with ``reference_filter`` = alpha < 1 the
     drive's reference first closes the fraction alpha of the error (a first-order filter):
-    new omega = omega + clip(alpha (target - omega), +-max_domega). Always clipped to
-    [omega_min, omega_max].
+    new omega = omega + clip(alpha (target - omega), +-max_domega). ``action_mode="limit"`` (with a
+    demand): the same value is a speed limit and the target is min(demand of the step, limit).
+    ``action_range=(lo, hi)`` maps the actions of target and limit modes onto [lo, hi] instead of
+    [omega_min, omega_max]. Always clipped to [omega_min, omega_max].
     NaN/inf or a wrong shape raise ``ValueError``.
 
     ## Observation Space
