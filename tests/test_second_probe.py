@@ -1,0 +1,109 @@
+"""Issue 25, second probe: the holes an independent hostile probe found after the first fixes.
+
+Each test fails on the code before its fix (see docs/RELIABILITY.md, "second probe")."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from gear_env.cli import main as cli
+from gear_env.io import atomic_write_text, check_outputs, hold_outputs
+
+ROOT = Path(__file__).resolve().parents[1]
+KEEP = '{"keep": true}'
+
+
+def test_steady_map_command_refuses_an_alias_in_one_line(tmp_path, capsys):
+    from gear_env.cli.steady import main
+
+    (tmp_path / "a.json").write_text(KEEP)
+    os.symlink(tmp_path / "a.json", tmp_path / "l.png")
+    rc = main(["--json", str(tmp_path / "a.json"), "--plot", str(tmp_path / "l.png")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "same file" in err[0]
+    assert (tmp_path / "a.json").read_text() == KEEP
+
+
+@pytest.mark.parametrize("argv", [["--step", "0"], ["--steps-per-period", "4"], ["--models", "x"]])
+def test_steady_map_command_checks_its_numbers(argv, capsys):
+    from gear_env.cli.steady import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2 and argv[0] in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", ["simulate", "stability", "continuation", "sweep"])
+@pytest.mark.parametrize("option", ["--params", "--pair"])
+def test_an_output_equal_to_the_params_or_pair_input_is_refused(tmp_path, capsys, command, option):
+    """``simulate --params p.json --json p.json`` used to replace the parameters by the results."""
+    p = tmp_path / "p.json"
+    p.write_text("{}")
+    link = tmp_path / "l.json"
+    os.link(p, link)
+    extra = ["--omega", "1.0"] if command == "simulate" else []
+    rc = cli([command, *extra, option, str(p), "--json", str(link)])
+    err = capsys.readouterr().err
+    assert rc == 2 and "same file" in err and option in err
+    assert p.read_text() == "{}"
+
+
+def test_an_output_may_not_be_a_file_of_an_input_run_folder(tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(ROOT / "gear_env" / "data" / "pretrained", run)
+    (run / "checkpoints").mkdir()
+    (run / "checkpoints" / "latest.json").write_text("{}")
+    for name in ("model.zip", "config.json", "vecnormalize.npz", "checkpoints/latest.json"):
+        with pytest.raises(ValueError, match="of the input --policy"):
+            check_outputs({"--json": run / name}, {"--policy": [str(run)]})
+        with pytest.raises(ValueError, match="of the input --policy"):  # NAME=RUN specs too
+            check_outputs({"--json": run / name}, {"--policy": [f"mine={run}"]})
+    check_outputs({"--json": run / "my_evaluation.json"}, {"--policy": [str(run)]})  # a new file there is fine
+
+
+def test_evaluate_refuses_to_write_over_the_model_it_reads(tmp_path, capsys):
+    run = tmp_path / "run"
+    shutil.copytree(ROOT / "gear_env" / "data" / "pretrained", run)
+    before = (run / "model.zip").read_bytes()
+    rc = cli(["evaluate", "--policy", str(run), "--env", "GearSpeed-v0", "--json", str(run / "model.zip")])
+    assert rc == 2 and "model.zip of the input --policy" in capsys.readouterr().err
+    assert (run / "model.zip").read_bytes() == before
+
+
+def test_a_link_planted_in_an_output_folder_never_leads_a_write_out_of_it(tmp_path):
+    (tmp_path / "precious.txt").write_text(KEEP)
+    out = tmp_path / "D"
+    out.mkdir()
+    os.symlink(tmp_path / "precious.txt", out / "report.md")
+    (tmp_path / "elsewhere").mkdir()
+    os.symlink(tmp_path / "elsewhere", out / "sub")
+    (out / "mine.md").write_text("old")
+    os.symlink("mine.md", out / "alias.md")  # a link inside the folder stays allowed
+    with hold_outputs({}, folders={"--out": out}):
+        with pytest.raises(OSError, match="out of the output folder"):
+            atomic_write_text(out / "report.md", "new")
+        with pytest.raises(OSError, match="out of the output folder"):
+            atomic_write_text(out / "sub" / "x.md", "new")
+        atomic_write_text(out / "alias.md", "new")
+    assert (tmp_path / "precious.txt").read_text() == KEEP
+    assert not os.listdir(tmp_path / "elsewhere")
+    assert (out / "mine.md").read_text() == "new"
+    atomic_write_text(out / "report.md", "through")  # outside a command's life: the link is the user's choice
+    assert (tmp_path / "precious.txt").read_text() == "through"
+
+
+def test_report_does_not_write_through_a_link_out_of_its_folder(tmp_path, capsys):
+    (tmp_path / "precious.txt").write_text(KEEP)
+    out = tmp_path / "D"
+    out.mkdir()
+    os.symlink(tmp_path / "precious.txt", out / "rl_report.md")
+    rc = cli(["report", "--policy", "constant:1.0", "--episodes", "1", "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and "out of the output folder" in err[-1]
+    assert (tmp_path / "precious.txt").read_text() == KEEP
+    assert json.loads(KEEP)
