@@ -107,3 +107,51 @@ def test_report_does_not_write_through_a_link_out_of_its_folder(tmp_path, capsys
     assert rc == 2 and "out of the output folder" in err[-1]
     assert (tmp_path / "precious.txt").read_text() == KEEP
     assert json.loads(KEEP)
+
+
+def _demand_protocol():  # type: ignore[no-untyped-def]
+    import sys
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import demand_protocol
+
+    return demand_protocol
+
+
+def test_demand_protocol_cache_is_read_bounded_and_checked(tmp_path, capsys):
+    """``benchmarks/demand_protocol.py --cache DIR``: a crafted cache file is refused (and recomputed), never
+    taken as results, and never hangs or raises a traceback."""
+    dp = _demand_protocol()
+    seeds = range(0, 3)
+    cache = tmp_path / "cache"
+    (cache / "s").mkdir(parents=True)
+    path = cache / "s" / "oracle.json"
+    good = [{"seed": s, "return": 1.5, "delivered": 1.0, "shortfall": -0.1, "cost": -0.2, "settled_omega": 1.2}
+            for s in seeds]  # fmt: skip
+
+    def put(obj):  # type: ignore[no-untyped-def]
+        path.write_text(obj if isinstance(obj, str) else json.dumps(obj))
+
+    put({"spec": "oracle", "seeds": [0, 3], "episodes": good})
+    assert dp.read_cache(path, cache, "oracle", seeds) == good
+    assert dp.read_cache(path, cache, "fixed-best", seeds) is None  # another policy's file: not used
+    bad = [
+        "[" * 100_000 + "]" * 100_000,
+        {"spec": "oracle", "seeds": [0, 3], "episodes": [{**r, "return": 1e300} for r in good]},
+        {"spec": "oracle", "seeds": [0, 3], "episodes": good[:2]},
+        {"spec": "oracle", "seeds": [0, 3], "episodes": [{**r, "seed": 7} for r in good]},
+        {"spec": "oracle", "seeds": [0, 3], "episodes": [{**r, "extra": 1} for r in good]},
+        {"spec": "oracle", "seeds": [0, 3], "episodes": good, "more": 1},
+    ]
+    for obj in bad:
+        put(obj)
+        assert dp.read_cache(path, cache, "oracle", seeds) is None
+        assert "refused" in capsys.readouterr().err
+    path.unlink()
+    os.mkfifo(path)  # never waited on
+    assert dp.read_cache(path, cache, "oracle", seeds) is None
+    path.unlink()
+    (tmp_path / "elsewhere.json").write_text(json.dumps({"spec": "oracle", "seeds": [0, 3], "episodes": good}))
+    os.symlink(tmp_path / "elsewhere.json", path)  # leaves the cache folder
+    assert dp.read_cache(path, cache, "oracle", seeds) is None
+    assert "leaves the folder" in capsys.readouterr().err
