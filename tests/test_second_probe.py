@@ -155,3 +155,34 @@ def test_demand_protocol_cache_is_read_bounded_and_checked(tmp_path, capsys):
     os.symlink(tmp_path / "elsewhere.json", path)  # leaves the cache folder
     assert dp.read_cache(path, cache, "oracle", seeds) is None
     assert "leaves the folder" in capsys.readouterr().err
+
+
+LAUGHS = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+    f"{chr(98 + i)}: &{chr(98 + i)} [{', '.join([f'*{chr(97 + i)}'] * 10)}]\n" for i in range(8)
+)
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "GearSpeed-v1: " + "[" * 100_000 + "]" * 100_000,  # was a RecursionError in yaml.safe_load
+        LAUGHS + "GearSpeed-v1:\n  env_kwargs:\n    demand: *i\n",  # 10^9 values once expanded
+        LAUGHS + "GearSpeed-v1:\n  policy_kwargs:\n    net_arch: *i\n",
+        "a: &a [*a]\nGearSpeed-v1:\n  env_kwargs: {demand: *a}\n",  # an alias to itself
+        "GearSpeed-v1: &x\n  env_kwargs: {demand: *x}\n",
+    ],
+    ids=["deep", "laughs-env", "laughs-net", "self-list", "self-map"],
+)
+def test_hyperparams_yaml_depth_and_alias_expansion_are_bounded(tmp_path, text):
+    from agents.hyperparams import load_zoo_entry
+
+    (tmp_path / "h.yml").write_text(text)
+    with pytest.raises(ValueError, match="h.yml"):
+        load_zoo_entry(tmp_path / "h.yml", "GearSpeed-v1")
+
+
+def test_the_shipped_hyperparams_still_load():
+    from agents.hyperparams import load_zoo_entry
+
+    for env_id in ("GearSpeed-v0", "GearSpeed-v1", "GearSpeedDemand-v0", "GearSpeedDemandHard-v0"):
+        assert load_zoo_entry(ROOT / "agents" / "hyperparams" / "ppo.yml", env_id)["ppo"]
