@@ -186,3 +186,45 @@ def test_the_shipped_hyperparams_still_load():
 
     for env_id in ("GearSpeed-v0", "GearSpeed-v1", "GearSpeedDemand-v0", "GearSpeedDemandHard-v0"):
         assert load_zoo_entry(ROOT / "agents" / "hyperparams" / "ppo.yml", env_id)["ppo"]
+
+
+@pytest.mark.parametrize("value", [0, -2, float("nan"), 1.5, True, "7", 10**30])
+def test_make_vec_refuses_an_odd_time_limit(value):
+    """``gym.make_vec(ID, max_episode_steps=...)`` was silently ignored (the registered max_steps won), so 0,
+    NaN and 1.5 were accepted and 7 ran episodes of the task's own length."""
+    import gymnasium as gym
+
+    import gear_env  # noqa: F401 - registers the tasks
+
+    with pytest.raises(ValueError, match="max_episode_steps"):
+        gym.make_vec("GearSpeedDemandHard-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                     max_episode_steps=value)  # fmt: skip
+
+
+def test_make_vec_time_limit_sets_the_episode_length():
+    import gymnasium as gym
+    import numpy as np
+
+    import gear_env  # noqa: F401
+
+    env = gym.make_vec("GearSpeed-v1", num_envs=2, vectorization_mode="vector_entry_point", max_episode_steps=3,
+                       periods_per_step=8, warmup_periods=16)  # fmt: skip
+    env.reset(seed=0)
+    ends = [bool(np.any(env.step(np.zeros((2, 1), np.float32))[3])) for _ in range(3)]
+    assert ends == [False, False, True]
+    assert gym.make_vec("GearSpeed-v1", num_envs=2, vectorization_mode="vector_entry_point").unwrapped.config.max_steps
+    with pytest.raises(ValueError, match="differ"):
+        gym.make_vec("GearSpeed-v1", num_envs=2, vectorization_mode="vector_entry_point", max_episode_steps=7,
+                     max_steps=9)  # fmt: skip
+
+
+def test_make_refuses_a_numpy_time_limit_with_a_value_error():
+    """``gym.make(ID, max_episode_steps=np.int64(5))`` passed the package's check, then Gymnasium raised its own
+    TypeError."""
+    import gymnasium as gym
+    import numpy as np
+
+    import gear_env  # noqa: F401
+
+    with pytest.raises(ValueError, match="max_episode_steps"):
+        gym.make("GearSpeed-v1", max_episode_steps=np.int64(5))
