@@ -228,3 +228,31 @@ def test_make_refuses_a_numpy_time_limit_with_a_value_error():
 
     with pytest.raises(ValueError, match="max_episode_steps"):
         gym.make("GearSpeed-v1", max_episode_steps=np.int64(5))
+
+
+def test_a_netcdf_file_of_another_kind_is_refused_before_its_data_is_inflated(tmp_path):
+    """A 1 MiB .nc whose zlib variable inflates to 900 MiB was loaded whole (1.1 GiB peak) before its missing
+    format attribute was noticed; the attributes are now checked first (here: 40 MiB of zeros, traced)."""
+    import tracemalloc
+
+    import netCDF4
+
+    from gear_env.analysis.results import ResultsFileError, SweepResult
+
+    p = tmp_path / "other.nc"
+    with netCDF4.Dataset(p, "w") as f:
+        f.createDimension("omega", 5)
+        f.createDimension("k", 2**20)
+        v = f.createVariable("poincare", "f8", ("omega", "k"), zlib=True, chunksizes=(1, 2**18))
+        v[:] = 0.0
+        f.setncattr("format", "[" * 10_000)
+    with pytest.raises(FileNotFoundError):
+        SweepResult.load(str(tmp_path / "missing.nc"))  # imports xarray outside the traced window
+    tracemalloc.start()
+    try:
+        with pytest.raises(ResultsFileError, match="not a gear-env sweep file"):
+            SweepResult.load(str(p))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 8 * 2**20  # 80 MiB before the fix
