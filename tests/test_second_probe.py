@@ -256,3 +256,18 @@ def test_a_netcdf_file_of_another_kind_is_refused_before_its_data_is_inflated(tm
     finally:
         tracemalloc.stop()
     assert peak < 8 * 2**20  # 80 MiB before the fix
+
+
+@pytest.mark.parametrize("kind", ["fifo", "dir", "missing", "empty"])
+def test_train_demand_file_refusals_name_the_file(tmp_path, capsys, kind):
+    p = tmp_path / "demand.csv"
+    if kind == "fifo":
+        os.mkfifo(p)
+    elif kind == "dir":
+        p.mkdir()
+    elif kind == "empty":
+        p.write_text("t_steps,omega\n")
+    rc = cli(["train", "--out", str(tmp_path / "D"), "--demand", str(p), "--timesteps", "64"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "demand.csv" in err[0] and "--demand" in err[0]
+    assert not (tmp_path / "D").exists()
