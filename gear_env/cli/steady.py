@@ -12,15 +12,15 @@ from collections.abc import Sequence
 import numpy as np
 
 
-def _steps(text: str) -> list[int]:
-    """The ``--steps-per-period`` list: comma-separated integers in [8, 100000]."""
+def _steps(text: str) -> str:
+    """The ``--steps-per-period`` list, checked: comma-separated integers in [8, 100000]."""
     try:
         out = [int(t) for t in text.split(",")]
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
     if not all(8 <= n <= 100_000 for n in out):
         raise argparse.ArgumentTypeError(f"steps per period must be integers in [8, 100000], got {text}")
-    return out
+    return text
 
 
 def _step(text: str) -> float:
@@ -34,13 +34,13 @@ def _step(text: str) -> float:
     return v
 
 
-def _models(text: str) -> list[str]:
-    """The ``--models`` list: comma-separated ``dynamic`` / ``constant``."""
+def _models(text: str) -> str:
+    """The ``--models`` list, checked: comma-separated ``dynamic`` / ``constant``."""
     out = text.split(",")
     for m in out:
         if m not in ("dynamic", "constant"):
             raise argparse.ArgumentTypeError(f"models are dynamic and constant, got {m!r}")
-    return out
+    return text
 
 
 def build_parser(prog: str = "python -m gear_env.evaluation") -> argparse.ArgumentParser:
@@ -77,8 +77,8 @@ def _run(args: argparse.Namespace) -> int:
     cfg = GearSpeedConfig()
     w = np.round(np.arange(cfg.omega_min, cfg.omega_max + 1e-9, args.step), 6)
     maps = {}
-    for model in args.models:
-        for nsp in args.steps_per_period:
+    for model in args.models.split(","):
+        for nsp in args.steps_per_period.split(","):
             label = f"{model}, {nsp} steps/period"
             maps[label] = steady_reward_map({"model": model, "steps_per_period": int(nsp)}, w)
             print(f"## {label}: best constant omega {maps[label].best_omega:.2f}\n")
