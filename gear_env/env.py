@@ -75,8 +75,10 @@ def check_action(action: Any, n: int | None = None) -> np.ndarray:
         if np.iscomplexobj(action):  # a cast would silently drop the imaginary part
             raise TypeError
         raw = action if isinstance(action, np.ndarray) else np.asarray(action)
-        if raw.dtype.kind in "SUV" or (raw.dtype.kind == "O" and any(isinstance(x, (str, bytes)) for x in raw.flat)):
-            raise TypeError  # text is refused, also when it spells a number ("0.1")
+        if raw.dtype.kind in "SUVb" or (
+            raw.dtype.kind == "O" and any(isinstance(x, (str, bytes, bool, np.bool_)) for x in raw.flat)
+        ):
+            raise TypeError  # text is refused, also when it spells a number ("0.1"), and so are bools (not 1.0)
         a = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(f"action must be a float array of shape (1,) in [-1, 1], got {action!r}") from None

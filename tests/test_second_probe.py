@@ -271,3 +271,19 @@ def test_train_demand_file_refusals_name_the_file(tmp_path, capsys, kind):
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "demand.csv" in err[0] and "--demand" in err[0]
     assert not (tmp_path / "D").exists()
+
+
+@pytest.mark.parametrize("env_id", ["GearSpeed-v1", "GearSpeedDemandHard-v0"])
+def test_bool_actions_are_refused_like_text(env_id):
+    """``env.step(np.array([True]))`` was taken as 1.0 (full acceleration); numbers in an object array stay fine."""
+    import gymnasium as gym
+    import numpy as np
+
+    import gear_env  # noqa: F401
+
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    for a in (np.array([True]), [True], np.array([np.bool_(False)], dtype=object)):
+        with pytest.raises(ValueError, match="action must be a float array"):
+            env.step(a)
+    env.step(np.array([0.1], dtype=object))
