@@ -287,3 +287,19 @@ def test_bool_actions_are_refused_like_text(env_id):
         with pytest.raises(ValueError, match="action must be a float array"):
             env.step(a)
     env.step(np.array([0.1], dtype=object))
+
+
+def test_pretrained_policy_of_another_task_is_refused(tmp_path, monkeypatch):
+    """A shipped policy.json whose env_id names another task (same spaces) was loaded for the asked task."""
+    import agents.registry as reg
+    from gear_env.env_config import task_config
+
+    d = tmp_path / "GearSpeedDemandHard-v0"
+    shutil.copytree(ROOT / "gear_env" / "data" / "policies" / "GearSpeedDemandHard-v0", d)
+    meta = json.loads((d / "policy.json").read_text())
+    meta["env_id"] = "GearSpeed-v1"
+    (d / "policy.json").write_text(json.dumps(meta))
+    monkeypatch.setattr(reg, "pretrained_dir", lambda env_id="GearSpeed-v0": d)
+    cfg = task_config("GearSpeedDemandHard-v0")
+    with pytest.raises(ValueError, match="env_id: the policy is for 'GearSpeed-v1'"):
+        reg.resolve_policy("pretrained", cfg, env_id="GearSpeedDemandHard-v0")
