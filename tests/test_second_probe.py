@@ -303,3 +303,14 @@ def test_pretrained_policy_of_another_task_is_refused(tmp_path, monkeypatch):
     cfg = task_config("GearSpeedDemandHard-v0")
     with pytest.raises(ValueError, match="env_id: the policy is for 'GearSpeed-v1'"):
         reg.resolve_policy("pretrained", cfg, env_id="GearSpeedDemandHard-v0")
+
+
+def test_a_run_folder_of_an_unknown_task_is_refused_naming_its_config(tmp_path, capsys):
+    run = tmp_path / "run"
+    shutil.copytree(ROOT / "gear_env" / "data" / "pretrained", run)
+    cfg = json.loads((run / "config.json").read_text())
+    cfg["env_id"] = "gymnasium.envs.classic_control:CartPole-v1"  # gym.make would import a module
+    (run / "config.json").write_text(json.dumps(cfg))
+    rc = cli(["evaluate", "--policy", str(run), "--episodes", "1"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "config.json" in err and "env_id" in err
