@@ -314,3 +314,18 @@ def test_a_run_folder_of_an_unknown_task_is_refused_naming_its_config(tmp_path, 
     rc = cli(["evaluate", "--policy", str(run), "--episodes", "1"])
     err = capsys.readouterr().err
     assert rc == 2 and "config.json" in err and "env_id" in err
+
+
+def test_overwrite_does_not_take_a_stub_config_for_an_old_run(tmp_path):
+    """A folder with ``config.json = {"format": "gear-env-run/1"}`` and the user's model.zip passed for a run of
+    an earlier release, so ``train --overwrite`` deleted the model.zip."""
+    from agents.runs import is_run_folder
+
+    d = tmp_path / "D"
+    d.mkdir()
+    (d / "config.json").write_text('{"format": "gear-env-run/1"}')
+    (d / "model.zip").write_text(KEEP)
+    assert not is_run_folder(d)
+    rc = cli(["train", "--out", str(d), "--overwrite", "--timesteps", "64", "--no-progress", "--quiet"])
+    assert rc == 2 and (d / "model.zip").read_text() == KEEP
+    assert is_run_folder(ROOT / "gear_env" / "data" / "pretrained")  # an earlier release's run still is one
