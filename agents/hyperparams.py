@@ -44,6 +44,46 @@ def _zoo_callback(value: Any, where: str) -> dict[str, Any]:
     return dict(kwargs)
 
 
+MAX_YAML_DEPTH = 64
+"""Deepest nesting of sequences and mappings in a ``--hyperparams`` file (as :data:`gear_env.io.MAX_JSON_DEPTH`)."""
+MAX_YAML_NODES = 100_000
+"""Most values of a ``--hyperparams`` file with its aliases expanded (a "billion laughs" file has 10^9)."""
+
+
+def _check_nesting(events: Any, path: Path) -> None:
+    """ValueError if the YAML event stream nests deeper than :data:`MAX_YAML_DEPTH` (PyYAML's parser is not
+    recursive, its composer is: a 100,000-level file would end in a RecursionError)."""
+    import yaml
+
+    depth = 0
+    for ev in events:
+        if isinstance(ev, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
+            depth += 1
+            if depth > MAX_YAML_DEPTH:
+                raise ValueError(f"--hyperparams {str(path)!r} is nested deeper than {MAX_YAML_DEPTH} levels")
+        elif isinstance(ev, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
+            depth -= 1
+
+
+def _check_expanded(data: Any, path: Path) -> None:
+    """ValueError if ``data`` with its YAML aliases expanded has more than :data:`MAX_YAML_NODES` values or
+    nests deeper than :data:`MAX_YAML_DEPTH` (an alias to an enclosing node makes it endless)."""
+    stack = [(data, 1)]
+    n = 0
+    while stack:
+        obj, depth = stack.pop()
+        n += 1
+        if n > MAX_YAML_NODES or depth > MAX_YAML_DEPTH:
+            raise ValueError(
+                f"--hyperparams {str(path)!r}: its aliases expand to more than {MAX_YAML_NODES:,} values or "
+                f"{MAX_YAML_DEPTH} levels (an alias to itself or a 'billion laughs' file); refused"
+            )
+        if isinstance(obj, dict):
+            stack.extend((v, depth + 1) for kv in obj.items() for v in kv)
+        elif isinstance(obj, list):
+            stack.extend((v, depth + 1) for v in obj)
+
+
 def load_zoo_entry(path: str | Path, env_id: str) -> dict[str, Any]:
     """The entry of ``env_id`` as {"ppo": {...PPO_DEFAULTS keys}, "env_kwargs", "n_envs", "n_timesteps"}, and
     "distill" (the keyword arguments of its :data:`DISTILL_CALLBACK`) when it has one."""
@@ -55,9 +95,12 @@ def load_zoo_entry(path: str | Path, env_id: str) -> dict[str, Any]:
     try:
         from gear_env.io import read_limited
 
-        data = yaml.safe_load(read_limited(p, "--hyperparams", 1024 * 1024).decode("utf-8"))
+        text = read_limited(p, "--hyperparams", 1024 * 1024).decode("utf-8")
+        _check_nesting(yaml.parse(text, Loader=yaml.SafeLoader), p)  # before safe_load, which recurses
+        data = yaml.safe_load(text)
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise ValueError(f"--hyperparams: cannot read {str(p)!r}: {exc}") from None
+    _check_expanded(data, p)
     if not isinstance(data, dict) or env_id not in data or not isinstance(data[env_id], dict):
         have = sorted(data) if isinstance(data, dict) else []
         raise ValueError(f"--hyperparams: {str(p)!r} has no entry for {env_id!r} (entries: {have})")

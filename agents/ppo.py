@@ -330,6 +330,11 @@ def _start_point(run: RunFolder, opts: TrainOptions, env_config: dict[str, Any])
     _check_resume(stored, opts, env_config, run.path)
     run.mark()  # a run folder of an earlier release gets its marker
     steps, mpath, vpath = run.latest_checkpoint()
+    if stored.get("vecnormalize") and vpath is None:  # resuming would restart the statistics silently
+        raise RunFolderError(
+            f"cannot resume: {str(run.checkpoint_dir / 'latest.json')!r}: vecnormalize: names no statistics, but "
+            f"the run normalises its observations ({str(run.path / 'config.json')!r}: vecnormalize)"
+        )
     old = run.read_metrics()
     rows = [r for r in old.get("evaluations", []) if r.get("timesteps", 0) <= steps]
     summ = old.get("summary", {})

@@ -250,6 +250,8 @@ def resolve_policy(spec: str, config: Any = None, env_id: str | None = None, all
         if not (d / "policy.json").is_file():
             raise ValueError(f"no pretrained policy is shipped for {env_id!r} ({str(d)!r} has no policy.json)")
         pol = load_policy(d, name="pretrained")
+        if pol.env_id != env_id:
+            raise ValueError(f"{str(d / 'policy.json')!r}: env_id: the policy is for {pol.env_id!r}, not {env_id!r}")
         if config is not None:
             from gear_env.env import GearSpeedEnv
 

@@ -84,7 +84,7 @@ def is_run_folder(path: str | os.PathLike) -> bool:
 
     The rule: the folder carries the :data:`RUN_MARKER` file (written by every ``train`` since the
     marker was introduced), or, for folders of earlier releases, its config.json is a JSON object of
-    format ``gear-env-run/1`` and it holds metrics.csv, metrics.json, model.zip or
+    format ``gear-env-run/1`` that passes the config.json checks, and it holds metrics.csv, metrics.json, model.zip or
     checkpoints/latest.json (the layout every earlier release wrote)."""
     p = Path(path)
     if not p.is_dir():
@@ -96,6 +96,10 @@ def is_run_folder(path: str | os.PathLike) -> bool:
     except (OSError, ValueError):
         return False
     if not isinstance(data, dict) or data.get("format") != RUN_FORMAT:
+        return False
+    try:  # a whole run config, not a stub naming the format (a forged one would let --overwrite clear the folder)
+        _check_config(data, str(p / CONFIG_FILE))
+    except (ValueError, KeyError, TypeError, AttributeError):
         return False
     layout = (METRICS_CSV, METRICS_JSON, MODEL_FILE, f"{CHECKPOINT_DIR}/{LATEST_FILE}")
     return any((p / q).is_file() for q in layout)
@@ -157,7 +161,9 @@ def _check_config(data: Mapping[str, Any], path: str) -> None:
     """Types and ranges of a config.json (known keys only); RunFolderError naming the field."""
     try:
         check_keys(data, CONFIG_KEYS, path, "")
-        want_str(data["env_id"], path, "env_id", max_len=64)
+        from gear_env.tasks import TASK_SETTINGS
+
+        want_str(data["env_id"], path, "env_id", max_len=64, choices=tuple(TASK_SETTINGS))
         check_keys(data["env_config"], data["env_config"].keys() if isinstance(data["env_config"], dict) else (),
                    path, "env_config")  # fmt: skip
         for k in ("observation_space", "action_space"):

@@ -623,6 +623,131 @@ def _c_env_no_time_limit(w: Path) -> Outcome:
     return api(run)
 
 
+# --------------------------------------------------------------------------------------------------
+# the second probe (an independent hostile probe after the first fixes; docs/RELIABILITY.md)
+# --------------------------------------------------------------------------------------------------
+def _c_params_hard_link(w: Path) -> Outcome:
+    (w / "p.json").write_text("{}")
+    os.link(w / "p.json", w / "l.json")
+    out = cli("simulate", "--omega", "1.0", "--params", str(w / "p.json"), "--json", str(w / "l.json"))
+    return out if (w / "p.json").read_text() == "{}" else Outcome("crash", "the --params file was overwritten")
+
+
+def _c_output_in_input_run(w: Path) -> Outcome:
+    run = run_copy(w)
+    before = (run / "model.zip").read_bytes()
+    out = cli("evaluate", "--policy", str(run), "--env", "GearSpeed-v0", "--json", str(run / "model.zip"))
+    return out if (run / "model.zip").read_bytes() == before else Outcome("crash", "model.zip was overwritten")
+
+
+def _c_folder_link_out(w: Path) -> Outcome:
+    from gear_env.io import atomic_write_text, hold_outputs
+
+    (w / "precious.txt").write_text("keep")
+    (w / "D").mkdir()
+    os.symlink(w / "precious.txt", w / "D" / "rl_report.md")
+
+    def write() -> None:
+        with hold_outputs({}, folders={"--out": w / "D"}):
+            atomic_write_text(w / "D" / "rl_report.md", "report")
+
+    out = api(write)
+    return out if (w / "precious.txt").read_text() == "keep" else Outcome("crash", "written through the link")
+
+
+def _c_steady_alias(w: Path) -> Outcome:
+    from gear_env.cli.steady import main as steady
+
+    (w / "a.json").write_text("keep")
+    os.symlink(w / "a.json", w / "l.png")
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        rc = steady(["--json", str(w / "a.json"), "--plot", str(w / "l.png")])
+    lines = err.getvalue().strip().splitlines()
+    return Outcome("refused" if rc == 2 and len(lines) == 1 else f"exit {rc}", lines[-1] if lines else "")
+
+
+LAUGHS = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+    f"{chr(98 + i)}: &{chr(98 + i)} [{', '.join([f'*{chr(97 + i)}'] * 10)}]\n" for i in range(8)
+)
+
+
+def _c_hyperparams(text: str) -> Callable[[Path], Outcome]:
+    def f(w: Path) -> Outcome:
+        (w / "h.yml").write_text(text)
+        return cli("train", "--out", str(w / "D"), "--hyperparams", str(w / "h.yml"), "--timesteps", "64")
+
+    return f
+
+
+def _c_protocol_cache(w: Path) -> Outcome:
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import demand_protocol
+
+    seeds = range(0, 3)
+    (w / "c" / "s").mkdir(parents=True)
+    path = w / "c" / "s" / "oracle.json"
+    rows = [dict(seed=s, delivered=0.0, shortfall=0.0, cost=0.0, settled_omega=1.0, **{"return": 1e300}) for s in seeds]
+    path.write_text(json.dumps({"spec": "oracle", "seeds": [0, 3], "episodes": rows}))
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        got = demand_protocol.read_cache(path, w / "c", "oracle", seeds)
+    return Outcome("refused", err.getvalue().strip()) if got is None else Outcome("ok", "the injected rows were used")
+
+
+def _c_make_vec_time_limit(w: Path) -> Outcome:
+    import gymnasium as gym
+
+    import gear_env  # noqa: F401
+
+    return api(lambda: gym.make_vec("GearSpeedDemandHard-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                                    max_episode_steps=0))  # fmt: skip
+
+
+def _c_nc_other_kind_bomb(w: Path) -> Outcome:
+    import netCDF4
+
+    from gear_env.analysis.results import SweepResult
+
+    p = w / "other.nc"
+    with netCDF4.Dataset(p, "w") as f:  # 200 MiB of zeros in about 0.2 MiB
+        f.createDimension("omega", 25)
+        f.createDimension("k", 2**20)
+        v = f.createVariable("poincare", "f8", ("omega", "k"), zlib=True, complevel=9, chunksizes=(1, 2**20))
+        for i in range(25):
+            v[i, :] = np.zeros(2**20)
+    return api(lambda: SweepResult.load(str(p)))
+
+
+def _c_latest_drops_statistics(w: Path) -> Outcome:
+    run = run_copy(w)
+    ck = with_checkpoint(run)
+    latest = json.loads((ck / "latest.json").read_text())
+    (ck / "latest.json").write_text(json.dumps({**latest, "vecnormalize": None}))
+    return resume(run)
+
+
+def _c_demand_fifo(w: Path) -> Outcome:
+    os.mkfifo(w / "demand.csv")
+    return cli("train", "--out", str(w / "D"), "--demand", str(w / "demand.csv"), "--timesteps", "64")
+
+
+def _c_hard_policy_pickle(w: Path) -> Outcome:
+    pol = w / "hard"
+    shutil.copytree(ROOT / "gear_env" / "data" / "policies" / "GearSpeedDemandHard-v0", pol)
+    with zipfile.ZipFile(pol / "policy.pt") as z:
+        entries = {i.filename: z.read(i.filename) for i in z.infolist()}
+    marker = w / "PWNED"
+    for name in entries:
+        if name.endswith("/data.pkl"):
+            entries[name] = f"cos\nsystem\n(S'touch {marker}'\ntR.".encode()
+    with zipfile.ZipFile(pol / "policy.pt", "w", zipfile.ZIP_STORED) as z:
+        for name, b in entries.items():
+            z.writestr(name, b)
+    out = api(load_shipped(pol))
+    return Outcome("crash", "code ran") if marker.exists() else out
+
+
 def _c_valid_pretrained(w: Path) -> Outcome:
     return api(load_run(run_copy(w)))
 
@@ -729,6 +854,35 @@ CASES: list[Case] = [
     Case("gym.make(max_episode_steps=-2)", "ValueError", _c_env_time_limit(-2), ("max_episode_steps",)),
     Case("gym.make(max_episode_steps=-1): no wrapper, the env truncates", "ends", _c_env_no_time_limit, (), "ok"),
     Case("gym.make(max_episode_steps=nan)", "ValueError", _c_env_time_limit(float("nan")), ("max_episode_steps",)),
+    Case("simulate --json hard link to its --params", "exit 2, params kept", _c_params_hard_link, ("--params",)),
+    Case(
+        "evaluate --json RUN/model.zip, RUN the --policy",
+        "exit 2, model kept",
+        _c_output_in_input_run,
+        ("model.zip of the input --policy",),
+    ),  # fmt: skip
+    Case("output folder: a link in it to a file outside", "refused", _c_folder_link_out, ("out of the output folder",)),
+    Case("steady map --plot symlink to --json", "exit 2", _c_steady_alias, ("same file",)),
+    Case(
+        "--hyperparams 100,000-deep YAML",
+        "exit 2",
+        _c_hyperparams("GearSpeed-v1: " + "[" * 100_000 + "]" * 100_000),
+        ("nested deeper",),
+    ),  # fmt: skip
+    Case(
+        "--hyperparams billion laughs",
+        "exit 2",
+        _c_hyperparams(LAUGHS + "GearSpeed-v1:\n  env_kwargs:\n    demand: *i\n"),
+        ("aliases expand",),
+    ),  # fmt: skip
+    Case("demand_protocol --cache with injected returns", "refused, recomputed", _c_protocol_cache, ("return",)),
+    Case("gym.make_vec(max_episode_steps=0)", "ValueError", _c_make_vec_time_limit, ("max_episode_steps",)),
+    Case(".nc of another kind, 200 MiB zlib zeros", "refused before inflating", _c_nc_other_kind_bomb, ("format",)),
+    Case("latest.json vecnormalize null", "exit 2", _c_latest_drops_statistics, ("vecnormalize",)),
+    Case("train --demand FIFO", "exit 2, FIFO named", _c_demand_fifo, ("demand.csv", "FIFO")),
+    Case(
+        "GearSpeedDemandHard-v0 policy.pt pickle payload", "refused, no code run", _c_hard_policy_pickle, ("policy.pt",)
+    ),
     Case("shipped pretrained run (earlier release) loads", "loads", _c_valid_pretrained, (), "ok"),
     Case("shipped policies load", "loads", _c_valid_policies, (), "ok"),
     Case("a checkpoint and a results file of this release load", "loads", _c_valid_checkpoint_and_results, (), "ok"),

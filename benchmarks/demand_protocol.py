@@ -132,17 +132,59 @@ def rollout(spec: str, cfg, seeds: range, cache: Path | None, label: str, env_id
     from gear_env.io import atomic_write_text
 
     path = None if cache is None else cache / label / f"{_safe(spec)}.json"
-    if path is not None and path.is_file():
-        data = json.loads(path.read_text(encoding="utf-8"))
-        if data.get("spec") == spec and data.get("seeds") == [seeds.start, seeds.stop]:
-            return data["episodes"]
+    if path is not None:
+        cached = read_cache(path, cache, spec, seeds)
+        if cached is not None:
+            return cached
     t0 = time.process_time()
     rows = episode_rows(resolve_policy(spec, cfg, env_id=env_id), cfg, seeds)
     print(f"  {spec}: {len(rows)} episodes, {time.process_time() - t0:.0f} s CPU", file=sys.stderr, flush=True)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(path, json.dumps({"spec": spec, "seeds": [seeds.start, seeds.stop], "episodes": rows}))
+        if path.is_symlink() or (path.exists() and not path.is_file()):
+            print(f"  not caching {spec}: {str(path)!r} is a link or not a regular file", file=sys.stderr)
+        else:
+            atomic_write_text(path, json.dumps({"spec": spec, "seeds": [seeds.start, seeds.stop], "episodes": rows}))
     return rows
+
+
+ROW_KEYS = ("seed", "return", "delivered", "shortfall", "cost", "settled_omega")
+"""The fields of one cached episode row (:func:`episode_rows`)."""
+MAX_CACHE_BYTES = 8 * 2**20
+"""Largest cache file read (bytes)."""
+
+
+def read_cache(path: Path, cache: Path, spec: str, seeds: range) -> list[dict] | None:
+    """The cached episode rows of ``spec`` on ``seeds``, or None (missing, of another policy or seeds, or refused).
+
+    The file is read through the package's bounded reader (regular file inside ``cache``, size, JSON depth) and
+    every row is checked: one per seed, in order, the known fields only, finite numbers. A refused file is
+    named on stderr and recomputed (and replaced). A cache cannot be told from the user's own results beyond
+    that: keep it in a folder only you write."""
+    from gear_env.io import read_json
+    from gear_env.untrusted import check_keys, inside, refuse, want_int, want_num
+
+    if not (path.exists() or path.is_symlink()):
+        return None
+    try:
+        inside(cache, path, "cache file")
+        data = check_keys(read_json(path, "cache file", MAX_CACHE_BYTES), ("spec", "seeds", "episodes"), path, "",
+                          required=("spec", "seeds", "episodes"))  # fmt: skip
+        if data["spec"] != spec or data["seeds"] != [seeds.start, seeds.stop]:
+            return None
+        rows = data["episodes"]
+        if not isinstance(rows, list) or len(rows) != len(seeds):
+            raise refuse(path, "episodes", f"must be a list of {len(seeds)} episode rows")
+        for i, (row, seed) in enumerate(zip(rows, seeds)):
+            check_keys(row, ROW_KEYS, path, f"episodes[{i}]", required=ROW_KEYS)
+            if want_int(row["seed"], 0, 2**32 - 1, path, f"episodes[{i}].seed") != seed:
+                raise refuse(path, f"episodes[{i}].seed", f"must be {seed}, got {row['seed']}")
+            for k in ROW_KEYS[1:]:
+                want_num(row[k], -1e6, 1e6, path, f"episodes[{i}].{k}")
+        return rows
+    except ValueError as exc:
+        print(f"  recomputing {spec}: the cache file is refused: {exc}", file=sys.stderr, flush=True)
+        return None
 
 
 def fmt(m: float, lo: float, hi: float, pct: bool = False) -> str:
@@ -198,6 +240,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--markdown", metavar="PATH")
     ap.add_argument("--json", metavar="PATH")
     args = ap.parse_args(argv)
+    from gear_env.io import hold_outputs
+
+    with hold_outputs({"--markdown": args.markdown, "--json": args.json}):  # aliases refused, outputs locked
+        return _main(args)
+
+
+def _main(args: argparse.Namespace) -> int:
     env_id = args.env
 
     from agents.protocol import gap_scores, iqm_ci
@@ -256,4 +305,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    try:
+        raise SystemExit(main())
+    except (ValueError, OSError) as exc:  # one line naming the option or file, as gear-env
+        print(f"demand_protocol.py: error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None

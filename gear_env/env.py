@@ -37,15 +37,27 @@ def _check_make_time_limit() -> bool:
             v = frame.f_locals.get("max_episode_steps")
             if v is None:
                 return False
-            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or (v < 1 and v != -1):
-                raise ValueError(
-                    f"max_episode_steps must be a positive integer (the episode's time limit) or -1 (no TimeLimit "
-                    f"wrapper: the env truncates at its own max_steps), got {v!r}; omit it for the task's own "
-                    "episode length"
-                )
-            return bool(v == -1)
+            return check_time_limit(v) == -1
         frame = frame.f_back
     return False
+
+
+MAX_TIME_LIMIT = 10**9
+"""Largest ``max_episode_steps`` accepted (steps)."""
+
+
+def check_time_limit(v: Any) -> int:
+    """``v`` if it is a valid ``max_episode_steps``: a Python integer in [1, :data:`MAX_TIME_LIMIT`] or -1.
+
+    Refused with a ValueError: 0, other negatives, NaN, bools, floats, strings, numpy integers (Gymnasium's
+    ``make`` raises its own TypeError for those) and values beyond the bound."""
+    if isinstance(v, bool) or not isinstance(v, int) or not (1 <= v <= MAX_TIME_LIMIT or v == -1):
+        raise ValueError(
+            f"max_episode_steps must be a Python integer in [1, {MAX_TIME_LIMIT}] (the episode's time limit) or -1 "
+            f"(no TimeLimit wrapper: the env truncates at its own max_steps), got {v!r}; omit it for the task's own "
+            "episode length"
+        )
+    return v
 
 
 def check_action(action: Any, n: int | None = None) -> np.ndarray:
@@ -63,8 +75,10 @@ def check_action(action: Any, n: int | None = None) -> np.ndarray:
         if np.iscomplexobj(action):  # a cast would silently drop the imaginary part
             raise TypeError
         raw = action if isinstance(action, np.ndarray) else np.asarray(action)
-        if raw.dtype.kind in "SUV" or (raw.dtype.kind == "O" and any(isinstance(x, (str, bytes)) for x in raw.flat)):
-            raise TypeError  # text is refused, also when it spells a number ("0.1")
+        if raw.dtype.kind in "SUVb" or (
+            raw.dtype.kind == "O" and any(isinstance(x, (str, bytes, bool, np.bool_)) for x in raw.flat)
+        ):
+            raise TypeError  # text is refused, also when it spells a number ("0.1"), and so are bools (not 1.0)
         a = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(f"action must be a float array of shape (1,) in [-1, 1], got {action!r}") from None

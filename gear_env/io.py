@@ -34,6 +34,8 @@ def atomic_write(path: str | os.PathLike, writer: Callable[[str], None]) -> None
     ``path`` intact. Errors are re-raised with the target path in the message.
     """
     target = Path(path)
+    if _CONFINED:
+        _check_confined(path, Path(os.path.realpath(target)))
     if target.is_symlink():  # write through a link to a regular file, keep the link
         target = Path(os.path.realpath(target))
     try:
@@ -61,6 +63,26 @@ def atomic_write(path: str | os.PathLike, writer: Callable[[str], None]) -> None
     except BaseException:
         _unlink(tmp)
         raise
+
+
+_CONFINED: list[str] = []
+"""Output folders of the running command (:func:`hold_outputs`), as absolute paths: a file written inside
+one of them must stay inside it after its symbolic links are resolved."""
+
+
+def _check_confined(given: str | os.PathLike, resolved: Path) -> None:
+    """OSError if ``given`` lies in an output folder of the running command but ``resolved`` (its link's
+    target) does not: a link planted in an output folder never redirects a write outside it."""
+    g = os.path.abspath(os.fspath(given))
+    for folder in _CONFINED:
+        if os.path.dirname(g) == folder or g.startswith(folder + os.sep):
+            real = os.path.realpath(folder)
+            r = os.fspath(resolved)
+            if r != real and not r.startswith(real + os.sep):
+                raise OSError(
+                    f"refusing to write {os.fspath(given)!r}: a symbolic link leads it out of the output folder "
+                    f"{folder!r} (to {r!r})"
+                )
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
@@ -134,6 +156,29 @@ def _identity(path: str) -> tuple[Any, ...]:
         return ("path", os.path.realpath(path))
 
 
+FOLDER_INPUT_FILES = (
+    "config.json", "env_config.json", "metrics.json", "metrics.csv", "model.zip", "best_model.zip",
+    "vecnormalize.npz", "best_vecnormalize.npz", "vecnormalize.pkl", "best_vecnormalize.pkl", "policy.json",
+    "policy.pt", ".gear-env-run",
+)  # fmt: skip
+"""Files of a run or policy folder given as an input (``--policy RUN``) that its loaders read: an output
+may not be one of them (nor any file of its ``checkpoints/``)."""
+
+
+def _input_paths(value: Any) -> list[str]:
+    """The existing paths among an input option's values (one, a list, or ``NAME=PATH`` policy specs)."""
+    out = []
+    for one in value if isinstance(value, (list, tuple)) else [value]:
+        if one is None:
+            continue
+        s = os.fspath(one)
+        for cand in (s, s.split("=", 1)[1] if "=" in s else ""):
+            if cand and os.path.lexists(cand):
+                out.append(cand)
+                break
+    return out
+
+
 def check_outputs(outputs: Mapping[str, Any], inputs: Mapping[str, Any] | None = None) -> None:
     """Check the output paths of a command before it starts (``ValueError`` naming the option).
 
@@ -142,9 +187,20 @@ def check_outputs(outputs: Mapping[str, Any], inputs: Mapping[str, Any] | None =
     does not exist, that is also an input, or that is another output."""
     seen: dict[tuple[Any, ...], str] = {}
     for name, path in (inputs or {}).items():
-        for one in path if isinstance(path, (list, tuple)) else [path]:
-            if one is not None and os.path.exists(os.fspath(one)) and not os.path.isdir(os.fspath(one)):
-                seen.setdefault(_identity(os.fspath(one)), f"the input {name} {os.fspath(one)!r}")
+        for one in _input_paths(path):
+            if not os.path.isdir(one):
+                seen.setdefault(_identity(one), f"the input {name} {one!r}")
+                continue
+            # a run or policy folder given as input (--policy RUN): the files its loaders read are inputs too
+            for f in FOLDER_INPUT_FILES:
+                q = os.path.join(one, f)
+                if os.path.exists(q):
+                    seen.setdefault(_identity(q), f"the file {f} of the input {name} {one!r}")
+            ck = os.path.join(one, "checkpoints")
+            if os.path.isdir(ck):
+                for f in os.listdir(ck):
+                    q = os.path.join(ck, f)
+                    seen.setdefault(_identity(q), f"the checkpoint file {f} of the input {name} {one!r}")
     for name, path in outputs.items():
         if path is None:
             continue
@@ -391,6 +447,11 @@ def hold_outputs(
         return False
 
     stack.push(_drop_empty_created)  # runs last, after the locks are released
+    for path in (folders or {}).values():
+        if path is not None:
+            folder = os.path.abspath(os.fspath(path))
+            _CONFINED.append(folder)
+            stack.callback(_CONFINED.remove, folder)
     try:
         for name, path in {**(folders or {}), **outputs}.items():
             if path is not None:

@@ -21,7 +21,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .env import check_action
+from .env import check_action, check_time_limit
 from .env_config import GearSpeedConfig
 from .env_core import GearSpeedCore, check_options, check_seed
 
@@ -42,6 +42,33 @@ def _seed_generators(num_envs: int, seed: int | Sequence[int | None] | None) -> 
     if len(seeds) != num_envs:
         raise ValueError(f"seed must be None, an integer >= 0 or a list of {num_envs} seeds, got {seed!r}")
     return [gym.utils.seeding.np_random(check_seed(s, f"seed[{i}]"))[0] for i, s in enumerate(seeds)]
+
+
+def _make_vec_kwargs() -> dict[str, Any]:
+    """The keyword arguments the user gave the ``gym.make_vec`` call building this env ({} if none)."""
+    import sys
+
+    from gymnasium.envs import registration
+
+    frame: Any = sys._getframe(1)
+    for _ in range(10):
+        if frame is None:
+            return {}
+        if frame.f_code is registration.make_vec.__code__:
+            kw = frame.f_locals.get("kwargs")
+            return kw if isinstance(kw, dict) else {}
+        frame = frame.f_back
+    return {}
+
+
+def _make_vec_time_limit() -> int | None:
+    """The ``max_episode_steps`` the user gave ``gym.make_vec`` (checked, :func:`check_time_limit`), or None.
+
+    Gymnasium passes the spec's own limit when the user gave none, and a registered ``max_steps`` would
+    otherwise win silently: ``gym.make_vec(ID, max_episode_steps=7)`` ran episodes of the task's length and
+    0, NaN or 1.5 were accepted."""
+    kw = _make_vec_kwargs()
+    return check_time_limit(kw["max_episode_steps"]) if "max_episode_steps" in kw else None
 
 
 class GearSpeedVectorEnv(VectorEnv):
@@ -76,8 +103,13 @@ class GearSpeedVectorEnv(VectorEnv):
     ):
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        if max_episode_steps is not None:  # gym.make_vec passes the spec's limit; it maps onto max_steps
-            kwargs.setdefault("max_steps", max_episode_steps)
+        given = _make_vec_time_limit()
+        if given is not None and given != -1:  # gym.make_vec(ID, max_episode_steps=N): episodes of N steps
+            if "max_steps" in _make_vec_kwargs() and _make_vec_kwargs()["max_steps"] != given:
+                raise ValueError(f"max_episode_steps={given} and max_steps={_make_vec_kwargs()['max_steps']} differ")
+            kwargs["max_steps"] = given
+        elif max_episode_steps is not None and given is None:  # the spec's limit (or a direct call's)
+            kwargs.setdefault("max_steps", check_time_limit(max_episode_steps))
         self.config = GearSpeedConfig.from_kwargs(config, **kwargs)
         try:
             mode = AutoresetMode(autoreset_mode) if isinstance(autoreset_mode, str) else autoreset_mode

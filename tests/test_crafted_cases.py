@@ -23,6 +23,7 @@ SLOW = {
     "model.zip policy.pth bomb (600 MB)",
     "vecnormalize.npz unused 800 MB member",
     ".nc config attribute 100,000 deep",
+    ".nc of another kind, 200 MiB zlib zeros",
 }
 
 

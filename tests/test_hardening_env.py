@@ -148,8 +148,10 @@ def action_is_valid(action, n: int | None) -> bool:
         return False
     try:
         raw = np.asarray(action)
-        if raw.dtype.kind in "SUV" or (raw.dtype.kind == "O" and any(isinstance(x, (str, bytes)) for x in raw.flat)):
-            return False  # text is refused, also when it spells a number (issue 25)
+        if raw.dtype.kind in "SUVb" or (
+            raw.dtype.kind == "O" and any(isinstance(x, (str, bytes, bool, np.bool_)) for x in raw.flat)
+        ):
+            return False  # text is refused, also when it spells a number, and bools (issue 25)
         a = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError):
         return False

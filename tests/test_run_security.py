@@ -196,3 +196,12 @@ def test_num_envs_and_timesteps_are_bounded(tmp_path):
         _opts(tmp_path, num_envs=10_000_000)
     with pytest.raises(ValueError, match="timesteps must be an integer"):
         _opts(tmp_path, timesteps=10**13)
+
+
+def test_resume_refuses_a_checkpoint_index_that_drops_the_statistics(copy):
+    """Issue 25, second probe: latest.json with ``"vecnormalize": null`` resumed a normalising run with fresh
+    statistics (silently another policy's input scale)."""
+    latest = copy / "checkpoints" / "latest.json"
+    latest.write_text(json.dumps({**json.loads(latest.read_text()), "vecnormalize": None}))
+    with pytest.raises(RunFolderError, match="vecnormalize: names no statistics"):
+        train(_opts(copy, timesteps=640, resume=True))

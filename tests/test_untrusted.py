@@ -136,7 +136,9 @@ def test_run_folder_rule_of_overwrite(tmp_path):
     (user / "config.json").write_text(json.dumps({"format": "something-else"}))
     assert not is_run_folder(user)
     (user / "config.json").write_text(json.dumps({"format": "gear-env-run/1"}))
-    assert is_run_folder(user)  # config.json of the run format beside metrics: an earlier release's run
+    assert not is_run_folder(user)  # a stub naming the format is not a run config (issue 25, second probe)
+    shutil.copy(PRETRAINED / "config.json", user / "config.json")
+    assert is_run_folder(user)  # a run config beside metrics: an earlier release's run
     only_cfg = tmp_path / "cfg"
     only_cfg.mkdir()
     (only_cfg / "config.json").write_text(json.dumps({"format": "gear-env-run/1"}))

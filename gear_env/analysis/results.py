@@ -326,21 +326,12 @@ class SweepResult:
                     raise ResultsFileError(
                         f"results file {str(p)!r} declares {total:,} bytes of data; the limit is {MAX_RESULTS_BYTES:,}"
                     )
+                _check_format(ds0.attrs, p)  # before loading: another file's data is never inflated
                 ds = ds0.load()
         except ResultsFileError:
             raise
         except Exception as exc:  # h5py/netCDF raise many types on a damaged file
             raise ResultsFileError(f"results file {str(p)!r} is truncated or not a NetCDF-4 file: {exc}") from exc
-        if ds.attrs.get("format") != FORMAT_NAME:
-            raise ResultsFileError(f"{str(p)!r} is not a gear-env sweep file (format={ds.attrs.get('format')!r})")
-        try:
-            ver = int(ds.attrs.get("format_version", -1))
-        except (TypeError, ValueError):
-            ver = -1
-        if ver != FORMAT_VERSION:
-            raise ResultsFileError(
-                f"{str(p)!r} has format_version {ver}; this gear-env reads version {FORMAT_VERSION} only"
-            )
         try:
             config = parse_json_text(str(ds.attrs["config"]), f"results file {str(p)!r}: config")
             params = GearParams.from_dict(parse_json_text(str(ds.attrs["params"]), f"results file {str(p)!r}: params"))
@@ -392,6 +383,25 @@ class SweepResult:
             periods=int(config["periods"]),
             meta=config.get("meta", {}),
         )
+
+
+def _check_format(attrs: Any, p: Path) -> None:
+    """ResultsFileError unless the attributes name a gear-env sweep file of this format version."""
+    if attrs.get("format") != FORMAT_NAME:
+        raise ResultsFileError(f"{str(p)!r} is not a gear-env sweep file (format={_short(attrs.get('format'))})")
+    try:
+        ver = int(attrs.get("format_version", -1))
+    except (TypeError, ValueError, OverflowError):
+        ver = -1
+    if ver != FORMAT_VERSION:
+        raise ResultsFileError(
+            f"{str(p)!r} has format_version {ver}; this gear-env reads version {FORMAT_VERSION} only"
+        )
+
+
+def _short(v: Any) -> str:
+    s = repr(v)
+    return s if len(s) <= 60 else s[:57] + "..."
 
 
 def _engine() -> str:

@@ -98,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
     return _run(args)
 
 
-@writes(outputs=("json", "plot"))
+@writes(outputs=("json", "plot"), inputs=("params", "pair"))
 def _run(args: argparse.Namespace) -> int:
     from ..analysis.continuation import continue_orbits
     from ..io import atomic_write_text

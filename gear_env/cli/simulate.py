@@ -30,7 +30,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-@writes(outputs=("json", "plot"))
+@writes(outputs=("json", "plot"), inputs=("params", "pair"))
 def run(args: argparse.Namespace) -> int:
     from ..analysis import classify_motion
     from ..simulator import default_steps_per_period, simulate

@@ -33,7 +33,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-@writes(outputs=("json", "plot"))
+@writes(outputs=("json", "plot"), inputs=("params", "pair"))
 def run(args: argparse.Namespace) -> int:
     from ..analysis.stability import DEFAULT_POINTS, stability_map
 

@@ -6,17 +6,51 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from collections.abc import Sequence
 
 import numpy as np
 
 
+def _steps(text: str) -> str:
+    """The ``--steps-per-period`` list, checked: comma-separated integers in [8, 100000]."""
+    try:
+        out = [int(t) for t in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
+    if not all(8 <= n <= 100_000 for n in out):
+        raise argparse.ArgumentTypeError(f"steps per period must be integers in [8, 100000], got {text}")
+    return text
+
+
+def _step(text: str) -> float:
+    """The ``--step`` of the omega grid: a number in [0.001, 10]."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 1e-3 <= v <= 10.0:  # NaN fails too
+        raise argparse.ArgumentTypeError(f"must be a number in [0.001, 10], got {text}")
+    return v
+
+
+def _models(text: str) -> str:
+    """The ``--models`` list, checked: comma-separated ``dynamic`` / ``constant``."""
+    out = text.split(",")
+    for m in out:
+        if m not in ("dynamic", "constant"):
+            raise argparse.ArgumentTypeError(f"models are dynamic and constant, got {m!r}")
+    return text
+
+
 def build_parser(prog: str = "python -m gear_env.evaluation") -> argparse.ArgumentParser:
     """The argument parser of the steady reward map command."""
     ap = argparse.ArgumentParser(prog=prog, description="Steady reward of constant speeds.")
-    ap.add_argument("--models", default="dynamic,constant", help="comma-separated backlash models")
-    ap.add_argument("--steps-per-period", default="64", help="comma-separated Newmark steps per mesh period")
-    ap.add_argument("--step", type=float, default=0.05, help="omega grid step (default 0.05)")
+    ap.add_argument("--models", type=_models, default="dynamic,constant", help="comma-separated backlash models")
+    ap.add_argument(
+        "--steps-per-period", type=_steps, default="64", help="comma-separated Newmark steps per mesh period"
+    )
+    ap.add_argument("--step", type=_step, default=0.05, help="omega grid step, 0.001-10 (default 0.05)")
     ap.add_argument("--json", metavar="PATH", help="write the maps as JSON")
     ap.add_argument("--plot", metavar="PNG", help="write the curves")
     return ap
@@ -24,11 +58,16 @@ def build_parser(prog: str = "python -m gear_env.evaluation") -> argparse.Argume
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
-    args = build_parser().parse_args(argv)
+    ap = build_parser()
+    args = ap.parse_args(argv)
     from ..io import hold_outputs
 
-    with hold_outputs({"--json": args.json, "--plot": args.plot}):
-        return _run(args)
+    try:
+        with hold_outputs({"--json": args.json, "--plot": args.plot}):
+            return _run(args)
+    except (ValueError, OSError) as exc:  # one line naming the option or file, exit 2 (as gear-env)
+        print(f"{ap.prog}: error: {exc}", file=sys.stderr)
+        return 2
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -89,12 +89,12 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--executor dask needs --scheduler ADDRESS")
     if args.resume and args.restart:
         raise ValueError("--resume and --restart exclude each other")
-    params = params_from_args(args)
     ckpt = args.checkpoint or (f"{args.out}.ckpt.npz" if args.out else None)
     if args.resume and not ckpt:
         raise ValueError("--resume needs --checkpoint PATH or --out PATH")
     args.checkpoint = ckpt
-    check_outputs(args, ("out", "json", "plot", "checkpoint"))  # before the work, not after it
+    check_outputs(args, ("out", "json", "plot", "checkpoint"), ("params", "pair"))  # before the work, not after it
+    params = params_from_args(args)
     check_memory(sweep_bytes(args.points, args.periods), f"--points {args.points} with --periods {args.periods}")
     with ExitStack() as locks:
         # one sweep per output at a time: a second one with the same --out (or checkpoint) is refused

@@ -120,6 +120,10 @@ def _demand(text: str) -> Any:
     from ..io import read_json, read_limited
 
     if not os.path.isfile(text):
+        if os.sep in text or os.path.lexists(text) or text.lower().endswith((".json", ".csv", ".txt")):
+            from ..untrusted import open_regular
+
+            os.close(open_regular(text, "--demand")[0])  # a FIFO, folder or missing file: refused by name
         return text  # a preset name; GearSpeedConfig validates it
     if text.lower().endswith(".json"):
         return read_json(text, "--demand")
@@ -135,6 +139,8 @@ def _demand(text: str) -> Any:
             if i == 0:
                 continue  # header row
             raise ValueError(f"--demand: line {i + 1} of {text!r} is not 't_steps,omega': {line!r}") from None
+    if not rows:
+        raise ValueError(f"--demand {text!r} holds no 't_steps,omega' rows")
     return rows
 
 
