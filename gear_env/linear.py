@@ -35,9 +35,11 @@ def mesh_vector(params: GearParams) -> np.ndarray:
 
 
 def backlash_gradient(params: GearParams) -> np.ndarray:
-    """b = dB_d/dq of the dynamic model at the nominal centre distance (b0 units per b0)."""
+    """b = dB_d/dq of the dynamic model at the nominal centre distance (b0 units per b0): tan(alpha0) along
+    the centre line under the paper's law, sin(alpha0) under the involute law (``GearParams.backlash_law``)."""
     a = math.radians(params.pressure_angle_deg)
-    return math.tan(a) * np.array([-1.0, 0.0, 1.0, 0.0, 0.0])
+    slope = math.sin(a) if params.backlash_law == "involute" else math.tan(a)
+    return slope * np.array([-1.0, 0.0, 1.0, 0.0, 0.0])
 
 
 def matrices(params: GearParams | None = None, model: str = "constant") -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -162,6 +162,7 @@ from .mesh import (
     psi_t,
     static_equilibrium,
     step_consts,
+    step_consts_at,
 )
 from .newmark import (
     DQ_LINEAR,

@@ -46,7 +46,17 @@ from .layout import (
     TWO_PI,
     WORK_SIZE,
 )
-from .mesh import eom_residual_t, excitation, force_direction_t, force_t, friction_t, mesh_t, psi_t, step_consts
+from .mesh import (
+    eom_residual_t,
+    excitation,
+    force_direction_t,
+    force_t,
+    friction_t,
+    mesh_t,
+    psi_t,
+    step_consts,
+    step_consts_at,
+)
 from .newmark import (
     LOCATE_TOL_STEP,
     _diverged_t,
@@ -84,7 +94,7 @@ def start_step(x, a, phi0, w0, c, dynamic, work):
     arithmetic of :func:`~gear_env.kernels.mesh.accel` (a = -r(0, q, v)) from the inline leaves,
     so that a driver's first call compiles no array-form kernel (accel, mesh_state, geometry).
     """
-    k = step_consts(c)
+    k = step_consts_at(step_consts(c), phi0, c)
     ce, se, kk = excitation(phi0, c)
     s = (x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9])
     delta, ddelta, bd, f, region, sp, cp, _db0, _db1, _dp0, _dp1 = mesh_t(s, ce, se, w0, k, dynamic)
@@ -134,8 +144,9 @@ def integrate_record(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, out, ma
             wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
             m = (j + 1) % n_steps
             if split == 0.0:
+                kq = step_consts_at(k, phi0 + dphi * (j + 1), c)  # k itself unless the torque fluctuates
                 ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(
-                    s, g, tab[m, 0], tab[m, 1], tab[m, 2], wb, hc, k, dynamic, max_iter, tol
+                    s, g, tab[m, 0], tab[m, 1], tab[m, 2], wb, hc, kq, dynamic, max_iter, tol
                 )
                 if not ok:
                     break
@@ -351,8 +362,9 @@ def stats_segment(
     while j < total:  # the hot loop: no calls
         wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
         m = (j + 1) % n_steps
+        kq = step_consts_at(k, phi0 + dphi * (j + 1), c)  # k itself unless the torque fluctuates
         ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(
-            s, g, tf[m, 0], tf[m, 1], tf[m, 2], wb, hc, k, dynamic, max_iter, tol
+            s, g, tf[m, 0], tf[m, 1], tf[m, 2], wb, hc, kq, dynamic, max_iter, tol
         )
         if not ok:
             break

@@ -13,7 +13,9 @@ term                           leaves (change them together)
 =============================  ======================================================================
 backlash law (eq. 9)           :func:`backlash`, :func:`backlash_branch`, :func:`backlash_slopes`,
                                :func:`backlash_inverse`
+dynamic backlash B_d (eq. 8)   :func:`dynamic_backlash_t` (the paper's law or Yi et al.'s involute law)
 dynamic geometry (eqs. 5-8)    :func:`geometry_t`, its first-order update :func:`geometry_taylor_t`
+torque fluctuation             :func:`load_t` (the U row's load), :func:`step_consts_at`
 excitation (TE, stiffness)     :func:`excitation`
 mesh deflection and rate       :func:`deflection_t`, its gradient :func:`deflection_gradient_t`
 mesh force                     :func:`force_t`, its partial derivatives :func:`force_gradient_t`
@@ -40,6 +42,8 @@ from __future__ import annotations
 
 import math
 
+from numba.cpython.unsafe.tuple import tuple_setitem
+
 from ..params import (
     C_A0,
     C_ALPHA0,
@@ -55,6 +59,11 @@ from ..params import (
     C_MU,
     C_NE,
     C_NK,
+    C_NT,
+    C_NU_G,
+    C_NU_P,
+    C_PH_TG,
+    C_PH_TP,
     C_PHI_E,
     C_PHI_K,
     C_R,
@@ -62,9 +71,12 @@ from ..params import (
     C_SIG_P,
     C_SIN_A0,
     C_TAIL,
+    C_TG1,
+    C_TP1,
     C_XI_BG,
     C_XI_BP,
     C_XI_M,
+    MODEL_INVOLUTE,
 )
 from .jit import kernel, kernel_inline
 from .layout import (
@@ -125,6 +137,31 @@ def step_consts(c):
         math.cos(c[C_PHI_E]),
         math.sin(c[C_PHI_E]),
     )
+
+
+@kernel_inline
+def load_t(phi, c):
+    """The U row's external load (per unit k_m0 b0) at mesh phase ``phi`` of the interval: F_s,
+    plus with a fluctuating torque (``GearParams.T_p1``, ``T_g1``; ``c[C_NT]`` = 1)
+    A_p sin(nu_p phi + ph_p) + A_g sin(nu_g phi + ph_g), A_j = m_e r_bj T_j1 / (J_j k_m0 b0):
+    m_e (r_bp T_p(t)/J_p + r_bg T_g(t)/J_g) / (k_m0 b0), the torques' share of the relative
+    acceleration (MODEL.md sec. 3, F_s). nu_j = torque order / z_j (cycles per mesh period); the
+    phases ph_j are those at the interval's phase 0 (``GearParams.consts_at_period``)."""
+    if c[C_NT] == 0.0:
+        return c[C_FS]
+    return (
+        c[C_FS] + c[C_TP1] * math.sin(c[C_NU_P] * phi + c[C_PH_TP]) + c[C_TG1] * math.sin(c[C_NU_G] * phi + c[C_PH_TG])
+    )
+
+
+@kernel_inline
+def step_consts_at(k, phi, c):
+    """The step constants ``k`` (:func:`step_consts`) for a step ending at mesh phase ``phi``:
+    ``k`` itself, unless the torque fluctuates (``c[C_NT]`` = 1), then ``k`` with k[K_FS] replaced
+    by :func:`load_t` (phi) (the equations of motion read the load there, :func:`eom_residual_t`)."""
+    if c[C_NT] == 0.0:
+        return k
+    return tuple_setitem(k, K_FS, load_t(phi, c))
 
 
 @kernel_inline
@@ -213,8 +250,29 @@ def backlash_inverse(f, bd):
 
 
 @kernel_inline
-def geometry_t(q0, q1, q2, q3, k):
-    """Dynamic-model geometry (eqs. 5-8) at positions (X_p, Y_p, X_g, Y_g), no trigonometric call.
+def dynamic_backlash_t(ad, ta, dalpha_dad, k, law):
+    """The dynamic half backlash B_d and dB_d/dA_d at centre distance A_d (b0 units), given
+    ta = tan(alpha_d) and dalpha_d/dA_d.
+
+    The paper's law (eq. 8, any ``law`` but MODEL_INVOLUTE): B_d = B_c + (A_d - A0) tan(alpha_d).
+    ``law`` = MODEL_INVOLUTE (``GearParams.backlash_law = "involute"``), Yi et al. (2019) as in
+    ROSS's ``multi_rotor/mesh.py``: B_d = B_c + R (inv alpha_d - inv alpha0), inv a = tan a - a,
+    R = (r_bp + r_bg)/b0; dB_d/dA_d = R tan^2(alpha_d) dalpha_d/dA_d. To first order in A_d - A0
+    the involute law is (A_d - A0) sin(alpha0) where eq. (8) has tan(alpha0).
+    """
+    if law == MODEL_INVOLUTE:
+        R = k[K_R]
+        ta0 = k[K_SIN_A0] / k[K_COS_A0]
+        bd = k[K_BC] + R * ((ta - math.atan(ta)) - (ta0 - math.atan(ta0)))
+        return bd, R * ta * ta * dalpha_dad
+    d = ad - k[K_A0]
+    return k[K_BC] + d * ta, ta + d * (1.0 + ta * ta) * dalpha_dad
+
+
+@kernel_inline
+def geometry_t(q0, q1, q2, q3, k, law):
+    """Dynamic-model geometry (eqs. 5-8) at positions (X_p, Y_p, X_g, Y_g), no trigonometric call
+    (the involute backlash law, ``law`` = MODEL_INVOLUTE, adds two arctangents; :func:`dynamic_backlash_t`).
 
     Returns (dB/dX_p, dB/dY_p, dpsi/dX_p, dpsi/dY_p, B_d, sin psi, cos psi); the derivatives
     with respect to (X_g, Y_g) are their negatives and those with respect to U are zero. With
@@ -243,10 +301,9 @@ def geometry_t(q0, q1, q2, q3, k):
     z = -d2 * iad
     sp = sa * cz + ca * z
     cp = ca * cz - sa * z
-    bd = k[K_BC] + (ad - A0) * ta
     dalpha_dad = ca * iad * cz * inv  # ca / (A_d sa)
     icz = sa * inv
-    db_dad = ta + (ad - A0) * (1.0 + ta * ta) * dalpha_dad
+    bd, db_dad = dynamic_backlash_t(ad, ta, dalpha_dad, k, law)
     d2a = d2 * iad * iad
     return (
         -db_dad * cz,
@@ -285,7 +342,7 @@ def mesh_t(s, ce, se, omega, k, dynamic):
         dp0 = 0.0
         dp1 = 0.0
     else:
-        db0, db1, dp0, dp1, bd, sp, cp = geometry_t(s[0], s[1], s[2], s[3], k)
+        db0, db1, dp0, dp1, bd, sp, cp = geometry_t(s[0], s[1], s[2], s[3], k, dynamic)
     delta, ddelta = deflection_t(s, sp, cp, dp0, dp1, ce, se, omega, k, dynamic)
     f, region = backlash(delta, bd)
     return delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1
@@ -430,7 +487,7 @@ def geometry(q, c, dynamic, out):
         out[12] = c[C_SIN_A0]
         out[13] = c[C_COS_A0]
         return
-    db0, db1, dp0, dp1, bd, sp, cp = geometry_t(q[0], q[1], q[2], q[3], step_consts(c))
+    db0, db1, dp0, dp1, bd, sp, cp = geometry_t(q[0], q[1], q[2], q[3], step_consts(c), dynamic)
     out[0] = math.atan2(sp, cp)
     out[1] = bd
     out[2] = db0
@@ -478,7 +535,8 @@ def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
 
 @kernel
 def static_equilibrium(c, dynamic, phi0, out):
-    """Drive-side static equilibrium with kappa = 0 and the TE frozen at phase phi0 (A10).
+    """Drive-side static equilibrium with kappa = 0 and the TE (and a fluctuating torque) frozen at
+    phase phi0 (A10).
 
     Writes positions and zero velocities into ``out`` (10). Solves the equations of motion at
     rest, r(0, q, 0) = 0 (:func:`eom_residual_t`): its U row gives F = F_s; for that force the
@@ -486,7 +544,7 @@ def static_equilibrium(c, dynamic, phi0, out):
     Delta = B_d + F_s (:func:`backlash_inverse`). The dynamic model's geometry depends on the
     positions, so the solve repeats until psi and B_d no longer change.
     """
-    k = step_consts(c)
+    k = step_consts_at(step_consts(c), phi0, c)  # the torques frozen at phi0 too
     ce, se, _kk = excitation(phi0, c)
     fr = friction_t(ce, se, k)
     Fs = k[K_FS]
@@ -503,7 +561,7 @@ def static_equilibrium(c, dynamic, phi0, out):
         s = (s[0], s[1], s[2], s[3], backlash_inverse(Fs, bd) - delta0, 0.0, 0.0, 0.0, 0.0, 0.0)
         if dynamic == 0:
             break
-        _db0, _db1, _dp0, _dp1, bd1, sp1, cp1 = geometry_t(s[0], s[1], s[2], s[3], k)
+        _db0, _db1, _dp0, _dp1, bd1, sp1, cp1 = geometry_t(s[0], s[1], s[2], s[3], k, dynamic)
         if abs(sp1 - sp) < 1e-15 and abs(cp1 - cp) < 1e-15 and abs(bd1 - bd) < 1e-15:
             break
         sp = sp1

@@ -48,6 +48,7 @@ from .mesh import (
     mesh_t,
     psi_t,
     step_consts,
+    step_consts_at,
 )
 
 
@@ -396,8 +397,9 @@ def split_step_t(s, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol):
             hc = step_coeffs(2.0 * sub / (wprev + wk), k)
             cek, sek, kkk = excitation(phi_a + sub * (j + 1.0), c)
             ga = (ss[10], ss[11], ss[12], ss[13], ss[14])
+            kq = step_consts_at(k, phi_a + sub * (j + 1.0), c)  # k itself unless the torque fluctuates
             ok, ss, F, region, delta, bd, sp, cp = newmark_try_t(
-                ss, ga, cek, sek, kkk, wk, hc, k, dynamic, max_iter, tol
+                ss, ga, cek, sek, kkk, wk, hc, kq, dynamic, max_iter, tol
             )
             if not ok:
                 good = False

@@ -1,0 +1,190 @@
+"""The torque fluctuation (GearParams.T_p1, T_g1) and the involute backlash law (backlash_law="involute"), issue 28
+item 5: off, the paper's model bit for bit; on, the load term against the exact linear response and the
+independent solve_ivp integrator; the law against its formula; the entry points that refuse them."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gear_env import GearParams, GearSimulator, simulate
+from gear_env import kernels as K
+from gear_env.integration import integrate
+from gear_env.linear import backlash_gradient, matrices, mesh_vector
+from gear_env.params import C_NT, MODEL_INVOLUTE, kernel_code, model_code, refuse_extensions
+from gear_env.reference import reference_poincare
+from gear_env.simulator import default_initial_state, simulate_batch
+
+TORQUE = dict(T_p1=10.0, T_g1=8.0, phi_Tp=0.4, phi_Tg=-1.1, torque_order=3.0)
+
+
+def test_defaults_leave_the_paper_model_untouched():
+    p = GearParams()
+    # amplitudes 0: the phases and the order do not reach the kernels; the law "paper" is the paper's code
+    q = GearParams(T_p1=0.0, T_g1=0.0, phi_Tp=0.3, phi_Tg=2.0, torque_order=2.0, backlash_law="paper")
+    assert np.array_equal(p.consts, q.consts) and not q.torque_fluctuates
+    assert p.consts[C_NT] == 0.0 and GearParams(T_g1=1.0).consts[C_NT] == 1.0
+    assert kernel_code("dynamic", p) == model_code("dynamic") == 1
+    assert kernel_code("dynamic", GearParams(backlash_law="involute")) == MODEL_INVOLUTE
+    assert kernel_code("constant", GearParams(backlash_law="involute")) == 0  # B_d = B_c: no law
+    # the dict of the paper's parameters is what it was; the new fields appear only when set and round-trip
+    assert not {"T_p1", "T_g1", "phi_Tp", "phi_Tg", "torque_order", "backlash_law"} & set(p.to_dict())
+    r = GearParams(backlash_law="involute", **TORQUE)
+    assert GearParams.from_dict(r.to_dict()) == r and r.to_dict()["backlash_law"] == "involute"
+
+
+@pytest.mark.parametrize("record", [False, True])
+@pytest.mark.parametrize("code", [0, 1])
+def test_torque_path_with_zero_amplitude_is_bit_identical(code, record):
+    """The kernels' torque path (C_NT = 1, both amplitudes 0) gives the constant-torque run bit for bit: the
+    path changes nothing but the U row's load, and a zero fluctuation adds exactly 0."""
+    p = GearParams()
+    c = p.consts.copy()
+    c[C_NT] = 1.0
+    c = K.readonly(c)
+    out = []
+    for consts in (p.consts, c):
+        x = default_initial_state(p, "dynamic" if code else "constant")
+        a = np.zeros(K.NDOF)
+        r = integrate(x, a, consts, code, 1.3, 1.3, 6, 64, record=record)
+        out.append(r.record if record else np.concatenate([x, r.poincare.ravel(), r.stats]))
+    assert np.array_equal(out[0], out[1])
+
+
+def _fit(phase: np.ndarray, y: np.ndarray, nu: float, ph: float) -> complex:
+    """Complex amplitude c of y ~ mean + Im(c exp(i (nu phase + ph))) = mean + Re(c) sin(.) + Im(c) cos(.)."""
+    arg = nu * phase + ph
+    A = np.column_stack([np.ones_like(arg), np.sin(arg), np.cos(arg)])
+    coef = np.linalg.lstsq(A, y, rcond=None)[0]
+    return complex(coef[1], coef[2])
+
+
+def test_torque_term_against_the_exact_linear_response():
+    """In permanent contact without TE and stiffness variation (constant model) the equations are linear:
+    the mesh force's response to the pinion torque's fluctuation is g.q + 2 xi_m g.q' with
+    (K - W^2 M + i W C) q = A_p e_U, W = nu omega (natural time). Near mode 1 (0.32), so the inertia,
+    damping, amplitude, frequency and phase of the term all show."""
+    p = GearParams(kappa=0.0, e_m1=0.0, T_p1=0.5, phi_Tp=0.7, torque_order=20.0)  # nu_p = 20/55
+    omega = 0.8
+    nu = p.torque_order / p.z_p
+    w = nu * omega  # 0.291, below mode 1
+    sim = GearSimulator(p, "constant", 192, omega)
+    sim.advance(150)  # the start's transient (mode 1, zeta 0.024) decays below 1e-6
+    tr = sim.record(11)  # 4 torque cycles
+    assert np.all(tr["region"] == 1)
+    M, C, Kmat = matrices(p, "constant")
+    g = mesh_vector(p)
+    amp = p.m_e * p.r_bp * p.T_p1 / (p.J_p * p.k_m0 * p.length_scale)
+    q = np.linalg.solve(Kmat - w * w * M + 1j * w * C, amp * np.eye(5)[4])
+    expected = (1.0 + 2.0 * p.xi_m * 1j * w) * (g @ q)  # complex amplitude of F on exp(i W s)
+    # the record's phase restarts at 0: the torque phase there is phi_Tp + 2 pi nu * 150
+    ph = p.phi_Tp + 2.0 * math.pi * nu * 150
+    got = _fit(tr.phase, tr["force"], nu, ph)  # the load is A_p sin(.) = Im(A_p e^{i .}): F = Im(expected e^{i .})
+    assert abs(got - expected) < 2e-4 * abs(expected), (got, expected)
+    assert abs(expected) > 3.0 * amp  # the resonance amplifies: a quasi-static law would be off by far
+
+
+def test_torque_and_law_agree_with_solve_ivp():
+    """The dynamic model with both torques fluctuating and the involute law, against the independent
+    integrator of gear_env/reference.py (its own statement of the load and of the law), through contact loss."""
+    p = GearParams(backlash_law="involute", **TORQUE)
+    sim = GearSimulator(p, "dynamic", None, 2.8)
+    st = sim.advance(20)
+    ref = reference_poincare(2.8, "dynamic", p, transient=0, periods=20)
+    assert ref.events >= 10
+    assert np.max(np.abs(st.poincare[:, :10] - ref.states)) < 1e-3
+    assert np.max(np.abs(st.poincare[:, 11] - ref.bd)) < 1e-4
+    # the terms are not negligible here: without them the trajectory is elsewhere
+    off = GearSimulator(GearParams(), "dynamic", None, 2.8).advance(20)
+    assert np.max(np.abs(off.poincare[:, :10] - ref.states)) > 1e-2
+
+
+def test_torque_phase_carries_across_intervals():
+    """advance(7) then record(8) continues the torque cycle where a single record(15) has it."""
+    p = GearParams(**TORQUE)
+    one = GearSimulator(p, "dynamic", 96, 1.1).record(15)
+    sim = GearSimulator(p, "dynamic", 96, 1.1)
+    sim.advance(7)
+    two = sim.record(8)
+    assert np.max(np.abs(one.states[-1] - two.states[-1])) < 1e-9
+    # a phase restarted at 0 would be far off
+    lost = GearSimulator(p, "dynamic", 96, 1.1, initial_state=one.states[7 * 96]).record(8)
+    assert np.max(np.abs(lost.states[-1] - one.states[-1])) > 1e-4
+
+
+def test_involute_law_against_its_formula():
+    """B_d = B_c + R (inv alpha_d - inv alpha0) at random centre positions; its gradient by central
+    differences; to first order in the centre separation eps, B_d - B_c = eps sin(alpha0), where the
+    paper's law has tan(alpha0) (the linearisation in gear_env.linear follows the law)."""
+    p = GearParams(backlash_law="involute")
+    c = p.consts
+    b0 = p.length_scale
+    R = (p.r_bp + p.r_bg) / b0
+    a0 = p.alpha0
+    rng = np.random.default_rng(28)
+    geo = np.zeros(K.GEO_SIZE)
+    for _ in range(20):
+        q = np.concatenate([rng.normal(0.0, 3.0, 4), [0.0]])
+        K.geometry(q, c, MODEL_INVOLUTE, geo)
+        ad = math.hypot(p.a0 / b0 - q[0] + q[2], q[1] - q[3])
+        al = math.acos(R / ad)
+        assert geo[1] == pytest.approx(p.b_c / b0 + R * ((math.tan(al) - al) - (math.tan(a0) - a0)), abs=1e-12)
+        for i in range(4):
+            e = np.zeros(5)
+            e[i] = 1e-4
+            hi, lo = np.zeros(K.GEO_SIZE), np.zeros(K.GEO_SIZE)
+            K.geometry(q + e, c, MODEL_INVOLUTE, hi)
+            K.geometry(q - e, c, MODEL_INVOLUTE, lo)
+            assert geo[2 + i] == pytest.approx((hi[1] - lo[1]) / 2e-4, abs=1e-8)
+    eps = 1e-3  # b0: the gear moves away from the pinion along the centre line
+    for law, code, slope in (("involute", MODEL_INVOLUTE, math.sin(a0)), ("paper", 1, math.tan(a0))):
+        K.geometry(np.array([0.0, 0.0, eps, 0.0, 0.0]), GearParams(backlash_law=law).consts, code, geo)
+        assert (geo[1] - 1.0) / eps == pytest.approx(slope, rel=1e-5)
+        assert backlash_gradient(GearParams(backlash_law=law))[2] == pytest.approx(slope, rel=1e-12)
+
+
+def test_involute_law_moves_the_backlash_by_cos_alpha():
+    """Same run, the two laws: the backlash's increase over B_c differs by the ratio sin/tan = cos(alpha0) (the
+    centres barely move differently)."""
+    p = GearParams(T_p=400.0, T_g=400.0 * 75 / 55)  # a load that spreads the centres visibly
+    rise = {}
+    for law in ("paper", "involute"):
+        tr = simulate(1.2, "dynamic", periods=5, transient=50, params=p.replace(backlash_law=law))
+        rise[law] = float(np.mean(tr["bd"])) - 1.0
+    assert rise["involute"] / rise["paper"] == pytest.approx(math.cos(p.alpha0), rel=2e-3)
+
+
+def test_bad_inputs_name_the_field():
+    with pytest.raises(ValueError, match=r"backlash_law must be one of \('paper', 'involute'\)"):
+        GearParams(backlash_law="ross")
+    with pytest.raises(ValueError, match=r"T_p1 must be in \[0, 1e\+07\]"):
+        GearParams(T_p1=-1.0)
+    with pytest.raises(ValueError, match=r"torque_order must be in \(0, 1000\]"):
+        GearParams(torque_order=0.0)
+    with pytest.raises(ValueError, match=r"phi_Tg must be a real number"):
+        GearParams(phi_Tg="1")
+    with pytest.raises(ValueError, match="tol .* does not take a torque fluctuation"):
+        GearSimulator(GearParams(T_p1=1.0), tol=1e-6)
+
+
+def test_entry_points_that_cannot_carry_them_refuse():
+    from gear_env.analysis.continuation import OrbitMap
+    from gear_env.analysis.floquet import PeriodMap
+    from gear_env.env_config import GearSpeedConfig
+
+    for p, word in (
+        (GearParams(T_p1=1.0), "torque fluctuation"),
+        (GearParams(backlash_law="involute"), "backlash law"),
+    ):
+        with pytest.raises(ValueError, match=word):
+            refuse_extensions(p, "x")
+        with pytest.raises(ValueError, match=f"simulate_batch .*{word}"):
+            simulate_batch([1.0], periods=1, transient=0, params=p)
+        with pytest.raises(ValueError, match=f"Floquet analysis .*{word}"):
+            PeriodMap(1.0, "dynamic", p)
+        with pytest.raises(ValueError, match=f"continuation .*{word}"):
+            OrbitMap("dynamic", p, 1)
+        with pytest.raises(ValueError, match=word):
+            GearSpeedConfig(params=p)
