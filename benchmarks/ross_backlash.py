@@ -118,7 +118,18 @@ def ross_square_wave(phase: np.ndarray, cr: float, k_g: float, ratio: float = AM
     return k_g - 2.0 * ratio * k_g * aux
 
 
-def gear_params(backlash_law: str, n_harmonics: int = 64, samples: int = 1024) -> tuple[GearParams, np.ndarray]:
+# the model variants compared: (backlash law, mesh force direction)
+VARIANTS = {
+    "ross": ("involute", "gradient"),  # ROSS's law and ROSS's force direction
+    "paper_law": ("paper", "gradient"),  # the paper's law, ROSS's force direction: what the law alone moves
+    "involute": ("involute", "line_of_action"),  # ROSS's law, the paper's force direction
+    "paper": ("paper", "line_of_action"),  # the paper's model
+}
+
+
+def gear_params(
+    backlash_law: str, direction: str = "line_of_action", n_harmonics: int = 64, samples: int = 1024
+) -> tuple[GearParams, np.ndarray]:
     """The ROSS test pair as GearParams (SI), and ROSS's stiffness waveform sampled over one mesh period."""
     g = pitch_geometry()
     phase = 2.0 * np.pi * np.arange(samples) / samples
@@ -149,13 +160,15 @@ def gear_params(backlash_law: str, n_harmonics: int = 64, samples: int = 1024) -
         xi_p=xi_b,
         xi_g=xi_b,
         backlash_law=backlash_law,
+        mesh_force_direction=direction,
     )
     return p, wave
 
 
-def gear_env_means(backlash_law: str) -> dict[str, float]:
-    """The six means of ROSS's test from a gear-env run of the same case (SI), plus the bearing means."""
-    p, _wave = gear_params(backlash_law)
+def gear_env_means(variant: str) -> dict[str, float]:
+    """The six means of ROSS's test from a gear-env run of the same case (SI), plus the bearing means, for
+    one of :data:`VARIANTS`."""
+    p, _wave = gear_params(*VARIANTS[variant])
     omega_mesh = RPM / 60.0 * 2.0 * math.pi * Z  # [rad/s]
     steps = POINTS_PER_REV // Z  # 300 per mesh period: ROSS's dt
     tr = simulate(
@@ -262,37 +275,29 @@ def rel(ours: float, ref: float) -> float:
 
 
 def comparison(ross: dict[str, float] | None = None) -> dict:
-    """Run both laws; the rows of the comparison (also what ``docs/VALIDATION.md`` shows)."""
-    ours = {law: gear_env_means(law) for law in ("involute", "paper")}
+    """Run the variants; the rows of the comparison (also what ``docs/VALIDATION.md`` shows)."""
+    ours = {v: gear_env_means(v) for v in VARIANTS}
     geo = pitch_geometry()
     a0 = 2.0 * geo["r_p"]
     rows = []
     for key, ref in REFERENCE.items():
-        row = {"quantity": key, "ross": ref, "involute": ours["involute"][key], "paper": ours["paper"][key]}
-        row["rel_involute"] = rel(row["involute"], ref)
-        row["rel_paper"] = rel(row["paper"], ref)
+        row = {"quantity": key, "ref": ref, **{v: ours[v][key] for v in VARIANTS}}
+        row.update({f"rel_{v}": rel(ours[v][key], ref) for v in VARIANTS})
         rows.append(row)
     # the parts that move: the increase over the nominal value (centre distance, pressure angle, backlash)
     nominal = {"centre distance [m]": a0, "pressure angle [rad]": math.radians(ALPHA0_DEG), "backlash [m]": B0}
     shifts = []
     for key, base in nominal.items():
         shifts.append(
-            {
-                "quantity": key + " minus nominal",
-                "ross": REFERENCE[key] - base,
-                "involute": ours["involute"][key] - base,
-                "paper": ours["paper"][key] - base,
-            }
+            {"quantity": key + " minus nominal", "ref": REFERENCE[key] - base, **{v: ours[v][key] - base for v in ours}}
         )
     for key, ref in ROSS_BEARINGS.items():
-        shifts.append(
-            {"quantity": "bearing " + key, "ross": ref, "involute": ours["involute"][key], "paper": ours["paper"][key]}
-        )
+        shifts.append({"quantity": "bearing " + key, "ref": ref, **{v: ours[v][key] for v in ours}})
     return {
         "rows": rows,
         "shifts": shifts,
         "static": static_shift(REFERENCE["mesh force [N]"]),
-        "contact_loss": {law: ours[law]["contact loss fraction"] for law in ours},
+        "contact_loss": {v: ours[v]["contact loss fraction"] for v in ours},
         "ross_rerun": ross,
         "k_mean_nominal_cr": float(np.mean(gear_params("paper")[1])),
         "contact_ratio_nominal": geo["contact_ratio"],
@@ -312,17 +317,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ROSS rerun: {time.perf_counter() - t0:.0f} s" if ross else f"ROSS not importable by {exe}")
     t0 = time.perf_counter()
     res = comparison(ross)
-    print(f"gear-env: both laws in {time.perf_counter() - t0:.0f} s (load {os.getloadavg()[0]:.1f})\n")
-    print(f"{'mean of':26s} {'ROSS (pinned)':>14s} {'involute law':>14s} {'rel':>8s} {'paper law':>14s} {'rel':>8s}")
+    print(f"gear-env: {len(VARIANTS)} variants in {time.perf_counter() - t0:.0f} s (load {os.getloadavg()[0]:.1f})")
+    print("variants (backlash law, force direction): " + ", ".join(f"{k} = {v}" for k, v in VARIANTS.items()) + "\n")
+    head = "".join(f" {v:>14s} {'rel':>8s}" for v in VARIANTS)
+    print(f"{'mean of':26s} {'ROSS (pinned)':>14s}{head}")
     for r in res["rows"]:
-        ok = "ok" if abs(r["rel_involute"]) <= TOL else "OFF"
-        print(
-            f"{r['quantity']:26s} {r['ross']:14.6e} {r['involute']:14.6e} {100 * r['rel_involute']:+7.2f}% "
-            f"{r['paper']:14.6e} {100 * r['rel_paper']:+7.2f}%  {ok}"
-        )
+        cells = "".join(f" {r[v]:14.6e} {100 * r['rel_' + v]:+7.2f}%" for v in VARIANTS)
+        print(f"{r['quantity']:26s} {r['ref']:14.6e}{cells}  {'ok' if abs(r['rel_ross']) <= TOL else 'OFF'}")
     print("\nthe parts that move (what the 2 % of the absolute values hides):")
     for r in res["shifts"]:
-        print(f"{r['quantity']:40s} ROSS {r['ross']:+.4e}  involute {r['involute']:+.4e}  paper {r['paper']:+.4e}")
+        cells = "  ".join(f"{v} {r[v]:+.4e}" for v in VARIANTS)
+        print(f"{r['quantity']:40s} ROSS {r['ref']:+.4e}  {cells}")
     print(f"\nstatic prediction at F = {REFERENCE['mesh force [N]']:.0f} N (no dynamics):")
     for name, v in res["static"].items():
         print(f"  {name:16s} " + "  ".join(f"{k} {x:.5e}" for k, x in v.items()))

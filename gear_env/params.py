@@ -40,7 +40,7 @@ C_MU = 20  # tooth sliding-friction coefficient (0 = the paper's eq. 10; analysi
 C_NK = 21  # number N_k of stiffness harmonics in the tail (0: the single cosine kappa, phi_k above)
 C_NE = 22  # number N_e of TE harmonics in the tail (0: the single cosine E1, phi_e above)
 # torque fluctuation (GearParams.T_p1, T_g1; 0 = off, the paper's constant torques): the load of the U row is
-# F_s + A_p sin(nu_p phi + ph_p) + A_g sin(nu_g phi + ph_g) at mesh phase phi (kernels.mesh.load_t)
+# F_s + A_p sin(nu_p phi + ph_p) + A_g sin(nu_g phi + ph_g) at mesh phase phi (kernels.mesh.external_load_t)
 C_NT = 23  # 1.0 if either torque fluctuates, else 0.0
 C_TP1 = 24  # A_p = m_e r_bp T_p1 / (J_p k_m0 b0)
 C_TG1 = 25  # A_g = m_e r_bg T_g1 / (J_g k_m0 b0)
@@ -57,8 +57,14 @@ BACKLASH_LAWS = ("paper", "involute")
 """The dynamic backlash law (``GearParams.backlash_law``): ``"paper"`` eq. (8), b_d = b_c + (a_d - a0)
 tan(alpha_d); ``"involute"`` Yi et al. (2019), as in ROSS: b_d = b_c + (r_bp + r_bg)(inv alpha_d - inv
 alpha0), inv a = tan a - a (to first order sin alpha0 where eq. (8) has tan alpha0)."""
-MODEL_INVOLUTE = 2
-"""Kernel model code of the dynamic model with the involute backlash law (:func:`kernel_code`)."""
+FORCE_DIRECTIONS = ("line_of_action", "gradient")
+"""How the dynamic model's mesh force acts on the bearings (``GearParams.mesh_force_direction``):
+``"line_of_action"`` eq. (10), along dDelta/dq with psi frozen; ``"gradient"`` as in ROSS, along
+d(Delta - region B_d)/dq, the gradient of the mesh's potential (MODEL.md, extension)."""
+LAW_INVOLUTE = 2
+"""Bit of the kernels' model code (:func:`kernel_code`): the dynamic model under the involute backlash law."""
+FORCE_GRADIENT = 4
+"""Bit of the kernels' model code: the dynamic model's mesh force along the gradient of Delta - region B_d."""
 
 
 def model_code(model: str) -> int:
@@ -69,18 +75,23 @@ def model_code(model: str) -> int:
 
 
 def kernel_code(model: str, params: GearParams) -> int:
-    """The kernels' model code of ``model`` under ``params``: :func:`model_code`, except the dynamic
-    model with ``params.backlash_law == "involute"``, which is :data:`MODEL_INVOLUTE` (2). The
-    constant model has no backlash law (B_d = B_c), so it stays 0."""
+    """The kernels' model code of ``model`` under ``params``: :func:`model_code` (0 constant, 1 dynamic), and
+    for the dynamic model the bits :data:`LAW_INVOLUTE` (``params.backlash_law == "involute"``) and
+    :data:`FORCE_GRADIENT` (``params.mesh_force_direction == "gradient"``). The constant model has neither
+    (B_d = B_c and psi = alpha0: no law, and the gradient is the line of action), so it stays 0."""
     code = model_code(model)
-    if code == 1 and params.backlash_law == "involute":
-        return MODEL_INVOLUTE
+    if code == 1:
+        if params.backlash_law == "involute":
+            code |= LAW_INVOLUTE
+        if params.mesh_force_direction == "gradient":
+            code |= FORCE_GRADIENT
     return code
 
 
 def refuse_extensions(params: GearParams, where: str) -> None:
     """Raise ``ValueError`` if ``params`` use an extension that only :func:`gear_env.simulate` and
-    :class:`gear_env.GearSimulator` carry (a fluctuating torque, the involute backlash law).
+    :class:`gear_env.GearSimulator` carry (a fluctuating torque, the involute backlash law, the gradient
+    force direction).
 
     A torque fluctuating at shaft frequency repeats every z mesh periods, not every one, so the
     mesh-period maps (Floquet, continuation), the SIMD batch and the environments, whose
@@ -94,6 +105,11 @@ def refuse_extensions(params: GearParams, where: str) -> None:
         raise ValueError(
             f"{where} takes only the paper's backlash law (GearParams.backlash_law = 'paper'), got "
             f"{params.backlash_law!r}; use gear_env.simulate or GearSimulator for {params.backlash_law!r}"
+        )
+    if params.mesh_force_direction != "line_of_action":
+        raise ValueError(
+            f"{where} takes only the paper's mesh force direction (GearParams.mesh_force_direction = "
+            f"'line_of_action'), got {params.mesh_force_direction!r}; use gear_env.simulate or GearSimulator"
         )
 
 
@@ -134,6 +150,7 @@ EXTENSION_DEFAULTS: dict[str, Any] = {
     "phi_Tg": 0.0,
     "torque_order": 1.0,
     "backlash_law": "paper",
+    "mesh_force_direction": "line_of_action",
 }
 """Fields that :meth:`GearParams.to_dict` leaves out at these values, so that the dict of the
 paper's model is what it was before they existed."""
@@ -210,6 +227,12 @@ class GearParams:
             ``"involute"`` (Yi et al. 2019, ROSS's law; :data:`BACKLASH_LAWS`). Carried by
             :func:`gear_env.simulate` and :class:`gear_env.GearSimulator`; the other entry points
             refuse ``"involute"``.
+        mesh_force_direction: how the dynamic model's mesh force acts on the bearings:
+            ``"line_of_action"`` (default, eq. 10: F along dDelta/dq, psi frozen) or ``"gradient"``
+            (ROSS: F along d(Delta - region B_d)/dq, the gradient of the mesh's potential, which adds the
+            backlash's own dependence on the centre positions and psi's; :data:`FORCE_DIRECTIONS`). Carried
+            by :func:`gear_env.simulate` and :class:`gear_env.GearSimulator`; the other entry points refuse
+            ``"gradient"``.
     """
 
     pressure_angle_deg: float = 20.0
@@ -244,12 +267,18 @@ class GearParams:
     phi_Tg: float = 0.0
     torque_order: float = 1.0
     backlash_law: str = "paper"
+    mesh_force_direction: str = "line_of_action"
     _consts: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self._set_harmonics()
         for f in fields(self):
-            if f.name.startswith("_") or f.name in ("stiffness_harmonics", "te_harmonics", "backlash_law"):
+            if f.name.startswith("_") or f.name in (
+                "stiffness_harmonics",
+                "te_harmonics",
+                "backlash_law",
+                "mesh_force_direction",
+            ):
                 continue
             v = getattr(self, f.name)
             if f.name == "b0" and v is None:
@@ -269,6 +298,10 @@ class GearParams:
             _check_range(f.name, float(v))
         if not isinstance(self.backlash_law, str) or self.backlash_law not in BACKLASH_LAWS:
             raise ValueError(f"GearParams.backlash_law must be one of {BACKLASH_LAWS}, got {self.backlash_law!r}")
+        if not isinstance(self.mesh_force_direction, str) or self.mesh_force_direction not in FORCE_DIRECTIONS:
+            raise ValueError(
+                f"GearParams.mesh_force_direction must be one of {FORCE_DIRECTIONS}, got {self.mesh_force_direction!r}"
+            )
         if len(self.te_harmonics) > 1 and self.friction > 0.0:
             raise ValueError(
                 "GearParams.friction must be 0 when te_harmonics has more than one harmonic "

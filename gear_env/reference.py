@@ -56,6 +56,8 @@ class RefConsts:
     law: str = "paper"
     # a fluctuating torque: the U row's load F_s + sum_j A_j sin(nu_j phi + ph_j), ((A_p, nu_p, ph_p), (A_g, ...))
     torque: tuple[tuple[float, float, float], ...] = ()
+    # the dynamic model's mesh force along the gradient of Delta - region B_d (GearParams.mesh_force_direction)
+    gradient: bool = False
 
     @classmethod
     def from_params(cls, p: GearParams) -> RefConsts:
@@ -95,6 +97,7 @@ class RefConsts:
             stiffness=tuple(p.stiffness_harmonics) or ((p.kappa, p.phi_k),),
             te=tuple((a / b0, ph) for a, ph in p.te_harmonics) or ((p.e_m1 / b0, p.phi_e),),
             law=p.backlash_law,
+            gradient=p.mesh_force_direction == "gradient",
             # T_j(t) = T_j + T_j1 sin(order theta_j + phi_Tj), theta_j = phi / z_j: its share of the U row's load
             torque=(
                 (me * rbp * p.T_p1 / (p.J_p * p.k_m0 * b0), p.torque_order / p.z_p, p.phi_Tp),
@@ -162,6 +165,33 @@ def mesh_quantities(y: np.ndarray, omega: float, k: RefConsts, model: str) -> tu
     return delta, ddelta, bd, psi
 
 
+def force_gradient(q: np.ndarray, phi: float, k: RefConsts, model: str, region: int) -> np.ndarray:
+    """d(Delta - region B_d)/dq (5 entries) by central differences of :func:`mesh_geometry` and Delta: the
+    direction of the mesh force with ``GearParams.mesh_force_direction = "gradient"`` (ROSS's force)."""
+
+    def gap(qq: np.ndarray) -> float:
+        psi, bd = mesh_geometry(qq, k, model)
+        e = transmission_error(phi, k)[0]
+        return (qq[0] - qq[2]) * math.sin(psi) - (qq[1] - qq[3]) * math.cos(psi) + qq[4] - e - region * bd
+
+    h = 1e-3  # b0: B_d and psi come from A0 ~ 1e3-1e4 b0, so a smaller step loses digits to round-off
+    out = np.empty(5)
+    for i in range(5):
+        d = np.zeros(5)
+        d[i] = h
+        out[i] = (gap(q + d) - gap(q - d)) / (2.0 * h)
+    return out
+
+
+def _direction(q: np.ndarray, phi: float, psi: float, k: RefConsts, model: str, region: int) -> np.ndarray:
+    """The generalised force of a unit mesh force on (X_p, Y_p, X_g, Y_g), with the sign of dDelta/dq: eq. (10)'s
+    line of action (psi frozen), or the gradient of Delta - region B_d (:func:`force_gradient`)."""
+    if k.gradient and model == "dynamic":
+        return force_gradient(q, phi, k, model, region)[:4]
+    s, c = math.sin(psi), math.cos(psi)
+    return np.array([s, -c, -s, c])
+
+
 def contact_region(delta: float, bd: float) -> int:
     """+1 drive-side contact (Delta >= B_d), 0 apart, -1 back-side contact (Delta <= -B_d)."""
     if delta >= bd:
@@ -180,13 +210,13 @@ def rhs(s: float, y: np.ndarray, omega: float, k: RefConsts, model: str, region:
     reg = contact_region(delta, bd) if region is None else region
     f = delta - bd if reg > 0 else (delta + bd if reg < 0 else 0.0)
     F = 2.0 * k.xi_m * ddelta + stiffness_factor(y[10], k) * f
-    s_, c_ = math.sin(psi), math.cos(psi)
+    g = _direction(y[0:5], y[10], psi, k, model, reg)
     out = np.empty(11)
     out[0:5] = y[5:10]
-    out[5] = -(2.0 * k.xi_p * k.sig_p * y[5] + k.sig_p**2 * y[0] + F * s_ / k.eps_p)
-    out[6] = -(2.0 * k.xi_p * k.sig_p * y[6] + k.sig_p**2 * y[1] - F * c_ / k.eps_p) - k.g_p / k.eps_p
-    out[7] = -(2.0 * k.xi_g * k.sig_g * y[7] + k.sig_g**2 * y[2] - F * s_ / k.eps_g)
-    out[8] = -(2.0 * k.xi_g * k.sig_g * y[8] + k.sig_g**2 * y[3] + F * c_ / k.eps_g) - k.g_g / k.eps_g
+    out[5] = -(2.0 * k.xi_p * k.sig_p * y[5] + k.sig_p**2 * y[0] + F * g[0] / k.eps_p)
+    out[6] = -(2.0 * k.xi_p * k.sig_p * y[6] + k.sig_p**2 * y[1] + F * g[1] / k.eps_p) - k.g_p / k.eps_p
+    out[7] = -(2.0 * k.xi_g * k.sig_g * y[7] + k.sig_g**2 * y[2] + F * g[2] / k.eps_g)
+    out[8] = -(2.0 * k.xi_g * k.sig_g * y[8] + k.sig_g**2 * y[3] + F * g[3] / k.eps_g) - k.g_g / k.eps_g
     out[9] = load(y[10], k) - F
     out[10] = omega
     return out
@@ -205,10 +235,11 @@ def reference_initial_state(params: GearParams | None = None, model: str = "dyna
     q = np.zeros(5)
     for _ in range(200):
         s, c = math.sin(psi), math.cos(psi)
-        q[0] = -fs * s / lam_p
-        q[1] = (fs * c - k.g_p) / lam_p
-        q[2] = fs * s / lam_g
-        q[3] = -(fs * c + k.g_g) / lam_g
+        g = _direction(q, 0.0, psi, k, model, 1)  # drive-side contact
+        q[0] = -fs * g[0] / lam_p
+        q[1] = -(fs * g[1] + k.g_p) / lam_p
+        q[2] = -fs * g[2] / lam_g
+        q[3] = -(fs * g[3] + k.g_g) / lam_g
         q[4] = bd + fs + transmission_error(0.0, k)[0] - ((q[0] - q[2]) * s - (q[1] - q[3]) * c)
         psi_new, bd_new = mesh_geometry(q, k, model)
         if abs(psi_new - psi) < 1e-16 and abs(bd_new - bd) < 1e-15:

@@ -157,6 +157,7 @@ from .mesh import (
     geometry,
     geometry_t,
     geometry_taylor_t,
+    mesh_direction_t,
     mesh_state,
     mesh_t,
     psi_t,

@@ -49,9 +49,9 @@ from .layout import (
 from .mesh import (
     eom_residual_t,
     excitation,
-    force_direction_t,
     force_t,
     friction_t,
+    mesh_direction_t,
     mesh_t,
     psi_t,
     step_consts,
@@ -100,7 +100,8 @@ def start_step(x, a, phi0, w0, c, dynamic, work):
     delta, ddelta, bd, f, region, sp, cp, _db0, _db1, _dp0, _dp1 = mesh_t(s, ce, se, w0, k, dynamic)
     F = force_t(ddelta, f, kk, k)
     fr = friction_t(ce, se, k)  # [friction extension] 0 unless GearParams.friction > 0
-    r = eom_residual_t((0.0, 0.0, 0.0, 0.0, 0.0), s, F, force_direction_t(sp, cp, fr, k), k)  # a = -r(0, q, v)
+    w = mesh_direction_t(sp, cp, fr, k, dynamic, region, _db0, _db1, _dp0, _dp1, x[0] - x[2], x[1] - x[3])
+    r = eom_residual_t((0.0, 0.0, 0.0, 0.0, 0.0), s, F, w, k)  # a = -r(0, q, v)
     for i in range(NDOF):
         a[i] = -r[i]
     work[0] = psi_t(sp, cp, c, dynamic)

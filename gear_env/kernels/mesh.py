@@ -15,11 +15,12 @@ backlash law (eq. 9)           :func:`backlash`, :func:`backlash_branch`, :func:
                                :func:`backlash_inverse`
 dynamic backlash B_d (eq. 8)   :func:`dynamic_backlash_t` (the paper's law or Yi et al.'s involute law)
 dynamic geometry (eqs. 5-8)    :func:`geometry_t`, its first-order update :func:`geometry_taylor_t`
-torque fluctuation             :func:`load_t` (the U row's load), :func:`step_consts_at`
+torque fluctuation             :func:`external_load_t` (the U row's load), :func:`step_consts_at`
 excitation (TE, stiffness)     :func:`excitation`
 mesh deflection and rate       :func:`deflection_t`, its gradient :func:`deflection_gradient_t`
 mesh force                     :func:`force_t`, its partial derivatives :func:`force_gradient_t`
 friction extension             :func:`friction_t`, the tilt in :func:`force_direction_t`
+force along the gradient       :func:`mesh_direction_t` (``GearParams.mesh_force_direction``)
 bearings, weights, inertia     :func:`bearing_t`, :func:`eom_residual_t`
 equations of motion            :func:`eom_residual_t`: r = a + C v + K q + w F - ext (accel = -r(0))
 =============================  ======================================================================
@@ -76,7 +77,8 @@ from ..params import (
     C_XI_BG,
     C_XI_BP,
     C_XI_M,
-    MODEL_INVOLUTE,
+    FORCE_GRADIENT,
+    LAW_INVOLUTE,
 )
 from .jit import kernel, kernel_inline
 from .layout import (
@@ -140,7 +142,7 @@ def step_consts(c):
 
 
 @kernel_inline
-def load_t(phi, c):
+def external_load_t(phi, c):
     """The U row's external load (per unit k_m0 b0) at mesh phase ``phi`` of the interval: F_s,
     plus with a fluctuating torque (``GearParams.T_p1``, ``T_g1``; ``c[C_NT]`` = 1)
     A_p sin(nu_p phi + ph_p) + A_g sin(nu_g phi + ph_g), A_j = m_e r_bj T_j1 / (J_j k_m0 b0):
@@ -158,10 +160,10 @@ def load_t(phi, c):
 def step_consts_at(k, phi, c):
     """The step constants ``k`` (:func:`step_consts`) for a step ending at mesh phase ``phi``:
     ``k`` itself, unless the torque fluctuates (``c[C_NT]`` = 1), then ``k`` with k[K_FS] replaced
-    by :func:`load_t` (phi) (the equations of motion read the load there, :func:`eom_residual_t`)."""
+    by :func:`external_load_t` (phi) (the equations of motion read the load there, :func:`eom_residual_t`)."""
     if c[C_NT] == 0.0:
         return k
-    return tuple_setitem(k, K_FS, load_t(phi, c))
+    return tuple_setitem(k, K_FS, external_load_t(phi, c))
 
 
 @kernel_inline
@@ -254,13 +256,14 @@ def dynamic_backlash_t(ad, ta, dalpha_dad, k, law):
     """The dynamic half backlash B_d and dB_d/dA_d at centre distance A_d (b0 units), given
     ta = tan(alpha_d) and dalpha_d/dA_d.
 
-    The paper's law (eq. 8, any ``law`` but MODEL_INVOLUTE): B_d = B_c + (A_d - A0) tan(alpha_d).
-    ``law`` = MODEL_INVOLUTE (``GearParams.backlash_law = "involute"``), Yi et al. (2019) as in
+    The paper's law (eq. 8; ``law``, the kernels' model code, without the bit LAW_INVOLUTE):
+    B_d = B_c + (A_d - A0) tan(alpha_d). With the bit LAW_INVOLUTE (``GearParams.backlash_law =
+    "involute"``), Yi et al. (2019) as in
     ROSS's ``multi_rotor/mesh.py``: B_d = B_c + R (inv alpha_d - inv alpha0), inv a = tan a - a,
     R = (r_bp + r_bg)/b0; dB_d/dA_d = R tan^2(alpha_d) dalpha_d/dA_d. To first order in A_d - A0
     the involute law is (A_d - A0) sin(alpha0) where eq. (8) has tan(alpha0).
     """
-    if law == MODEL_INVOLUTE:
+    if law & LAW_INVOLUTE:
         R = k[K_R]
         ta0 = k[K_SIN_A0] / k[K_COS_A0]
         bd = k[K_BC] + R * ((ta - math.atan(ta)) - (ta0 - math.atan(ta0)))
@@ -272,7 +275,7 @@ def dynamic_backlash_t(ad, ta, dalpha_dad, k, law):
 @kernel_inline
 def geometry_t(q0, q1, q2, q3, k, law):
     """Dynamic-model geometry (eqs. 5-8) at positions (X_p, Y_p, X_g, Y_g), no trigonometric call
-    (the involute backlash law, ``law`` = MODEL_INVOLUTE, adds two arctangents; :func:`dynamic_backlash_t`).
+    (the involute backlash law, bit LAW_INVOLUTE of ``law``, adds two arctangents; :func:`dynamic_backlash_t`).
 
     Returns (dB/dX_p, dB/dY_p, dpsi/dX_p, dpsi/dY_p, B_d, sin psi, cos psi); the derivatives
     with respect to (X_g, Y_g) are their negatives and those with respect to U are zero. With
@@ -433,6 +436,27 @@ def force_direction_t(sp, cp, fr, k):
 
 
 @kernel_inline
+def mesh_direction_t(sp, cp, fr, k, dynamic, region, db0, db1, dp0, dp1, dx, dy):
+    """w of the equations of motion for the kernels' model code ``dynamic``: :func:`force_direction_t`
+    (eq. 10: along the line of action, psi frozen), unless the code has the bit FORCE_GRADIENT
+    (``GearParams.mesh_force_direction = "gradient"``, ROSS's force): then the mesh force acts along
+    the gradient of Delta - region B_d, so w also has d(Delta)/dpsi dpsi/dq = (dx cos psi + dy sin psi)
+    dpsi/dq and -region dB_d/dq on (X_p, Y_p), their negatives on (X_g, Y_g) (dx, dy = X_p - X_g,
+    Y_p - Y_g; dB_d/dq, dpsi/dq from :func:`geometry_t`; region 0, the teeth apart, keeps the psi term
+    for the damping force). With the gradient the mesh force derives from the potential
+    k f(Delta - region B_d)^2 / 2, as in ROSS's ``multi_rotor/mesh.py``."""
+    w0, w1, w2, w3 = force_direction_t(sp, cp, fr, k)
+    if not dynamic & FORCE_GRADIENT:
+        return w0, w1, w2, w3
+    P = dx * cp + dy * sp
+    g0 = P * dp0 - region * db0
+    g1 = P * dp1 - region * db1
+    iep = k[K_IEP]
+    ieg = k[K_IEG]
+    return w0 + g0 * iep, w1 + g1 * iep, w2 - g0 * ieg, w3 - g1 * ieg
+
+
+@kernel_inline
 def force_direction_dpsi_t(sp, cp, fr, k):
     """dw/dpsi: derivative of :func:`force_direction_t` with respect to the meshing angle psi
     (friction factor fr held fixed)."""
@@ -525,7 +549,9 @@ def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
     delta, ddelta, bd, f, region = mesh_state(q, v, ce, se, omega, c, dynamic, geo)
     F = force_t(ddelta, f, kk, k)
     fr = friction_t(ce, se, k)  # [friction extension] 0 unless GearParams.friction > 0
-    w = force_direction_t(geo[12], geo[13], fr, k)
+    w = mesh_direction_t(
+        geo[12], geo[13], fr, k, dynamic, region, geo[2], geo[3], geo[7], geo[8], q[0] - q[2], q[1] - q[3]
+    )
     s = (q[0], q[1], q[2], q[3], q[4], v[0], v[1], v[2], v[3], v[4])
     r = eom_residual_t((0.0, 0.0, 0.0, 0.0, 0.0), s, F, w, k)  # a = -r(0, q, v)
     for i in range(5):
@@ -542,7 +568,8 @@ def static_equilibrium(c, dynamic, phi0, out):
     rest, r(0, q, 0) = 0 (:func:`eom_residual_t`): its U row gives F = F_s; for that force the
     bearing rows are linear in the bearing positions (q_i = -r_i(q = 0) / K_i), and U closes
     Delta = B_d + F_s (:func:`backlash_inverse`). The dynamic model's geometry depends on the
-    positions, so the solve repeats until psi and B_d no longer change.
+    positions, so the solve repeats until psi and B_d no longer change (with the gradient force,
+    :func:`mesh_direction_t`, the force direction follows the last iterate's geometry).
     """
     k = step_consts_at(step_consts(c), phi0, c)  # the torques frozen at phi0 too
     ce, se, _kk = excitation(phi0, c)
@@ -553,15 +580,17 @@ def static_equilibrium(c, dynamic, phi0, out):
     sp = k[K_SIN_A0]
     cp = k[K_COS_A0]
     bd = k[K_BC]
+    db0 = db1 = dp0 = dp1 = 0.0
     s = rest
     for _it in range(100):
-        r = eom_residual_t(rest, rest, Fs, force_direction_t(sp, cp, fr, k), k)
+        w = mesh_direction_t(sp, cp, fr, k, dynamic, 1, db0, db1, dp0, dp1, s[0] - s[2], s[1] - s[3])
+        r = eom_residual_t(rest, rest, Fs, w, k)
         s = (-r[0] / k_p, -r[1] / k_p, -r[2] / k_g, -r[3] / k_g, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         delta0, _dd = deflection_t(s, sp, cp, 0.0, 0.0, ce, se, 0.0, k, 0)  # Delta with U = 0
         s = (s[0], s[1], s[2], s[3], backlash_inverse(Fs, bd) - delta0, 0.0, 0.0, 0.0, 0.0, 0.0)
         if dynamic == 0:
             break
-        _db0, _db1, _dp0, _dp1, bd1, sp1, cp1 = geometry_t(s[0], s[1], s[2], s[3], k, dynamic)
+        db0, db1, dp0, dp1, bd1, sp1, cp1 = geometry_t(s[0], s[1], s[2], s[3], k, dynamic)
         if abs(sp1 - sp) < 1e-15 and abs(cp1 - cp) < 1e-15 and abs(bd1 - bd) < 1e-15:
             break
         sp = sp1
