@@ -13,9 +13,11 @@ term                           leaves (change them together)
 =============================  ======================================================================
 backlash law (eq. 9)           :func:`backlash`, :func:`backlash_branch`, :func:`backlash_slopes`,
                                :func:`backlash_inverse`
-dynamic backlash B_d (eq. 8)   :func:`dynamic_backlash_t` (the paper's law or Yi et al.'s involute law)
+dynamic backlash B_d (eq. 8)   :func:`dynamic_backlash_t` (the paper's law or Yi et al.'s involute law,
+                               whose arctangent is the call-free :func:`atan_small_t`)
 dynamic geometry (eqs. 5-8)    :func:`geometry_t`, its first-order update :func:`geometry_taylor_t`
-torque fluctuation             :func:`external_load_t` (the U row's load), :func:`step_consts_at`
+torque fluctuation             :func:`external_load_t` (the U row's load), :func:`step_consts_at`;
+                               in the loops :func:`load_table` and :func:`with_load_t`
 excitation (TE, stiffness)     :func:`excitation`
 mesh deflection and rate       :func:`deflection_t`, its gradient :func:`deflection_gradient_t`
 mesh force                     :func:`force_t`, its partial derivatives :func:`force_gradient_t`
@@ -43,6 +45,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba.cpython.unsafe.tuple import tuple_setitem
 
 from ..params import (
@@ -157,13 +160,42 @@ def external_load_t(phi, c):
 
 
 @kernel_inline
-def step_consts_at(k, phi, c):
+def torque_fluctuates_t(c):
+    """True if the constants ``c`` carry a torque fluctuation (``GearParams.T_p1`` or ``T_g1`` > 0)."""
+    return c[C_NT] != 0.0
+
+
+@kernel_inline
+def step_consts_at(k, phi, c, fluctuates):
     """The step constants ``k`` (:func:`step_consts`) for a step ending at mesh phase ``phi``:
-    ``k`` itself, unless the torque fluctuates (``c[C_NT]`` = 1), then ``k`` with k[K_FS] replaced
-    by :func:`external_load_t` (phi) (the equations of motion read the load there, :func:`eom_residual_t`)."""
-    if c[C_NT] == 0.0:
+    ``k`` itself, unless ``fluctuates`` (:func:`torque_fluctuates_t` (c), read once before a loop of
+    steps), then ``k`` with k[K_FS] replaced by :func:`external_load_t` (phi) (the equations of motion
+    read the load there, :func:`eom_residual_t`)."""
+    if not fluctuates:
         return k
     return tuple_setitem(k, K_FS, external_load_t(phi, c))
+
+
+@kernel_inline
+def with_load_t(k, load, fluctuates):
+    """:func:`step_consts_at` with the load given (a row of :func:`load_table`): what the Newmark loops
+    use, so that no sine (a library call) sits in a loop of steps (a call there slows every model,
+    also with the torque constant, by keeping the loop's registers saved around it)."""
+    if not fluctuates:
+        return k
+    return tuple_setitem(k, K_FS, load)
+
+
+@kernel
+def load_table(phi0, dphi, total, c):
+    """:func:`external_load_t` at the ends of ``total`` steps of ``dphi`` from mesh phase ``phi0`` (an
+    empty array when the torque is constant: the loops then never read it)."""
+    if not torque_fluctuates_t(c):
+        return np.empty(0)
+    out = np.empty(total)
+    for j in range(total):
+        out[j] = external_load_t(phi0 + dphi * (j + 1), c)
+    return out
 
 
 @kernel_inline
@@ -252,6 +284,35 @@ def backlash_inverse(f, bd):
 
 
 @kernel_inline
+def atan_small_t(x):
+    """atan(x) without a library call: three half-angle reductions atan(x) = 2 atan(x / (1 + sqrt(1 + x^2)))
+    bring |x| below tan(pi/16) = 0.199, where 16 terms of the Taylor series are exact to round-off (the
+    first omitted term is below 2e-25 of the value)."""
+    y = x / (1.0 + math.sqrt(1.0 + x * x))  # written out, no loop: this sits inside the Newmark loops
+    y = y / (1.0 + math.sqrt(1.0 + y * y))
+    y = y / (1.0 + math.sqrt(1.0 + y * y))
+    y2 = y * y
+    # sum_{n odd <= 31} (-1)^((n-1)/2) y^(n-1) / n by Horner in y^2, written out
+    s = -1.0 / 31.0
+    s = 1.0 / 29.0 + y2 * s
+    s = -1.0 / 27.0 + y2 * s
+    s = 1.0 / 25.0 + y2 * s
+    s = -1.0 / 23.0 + y2 * s
+    s = 1.0 / 21.0 + y2 * s
+    s = -1.0 / 19.0 + y2 * s
+    s = 1.0 / 17.0 + y2 * s
+    s = -1.0 / 15.0 + y2 * s
+    s = 1.0 / 13.0 + y2 * s
+    s = -1.0 / 11.0 + y2 * s
+    s = 1.0 / 9.0 + y2 * s
+    s = -1.0 / 7.0 + y2 * s
+    s = 1.0 / 5.0 + y2 * s
+    s = -1.0 / 3.0 + y2 * s
+    s = 1.0 / 1.0 + y2 * s
+    return 8.0 * y * s
+
+
+@kernel_inline
 def dynamic_backlash_t(ad, ta, dalpha_dad, k, law):
     """The dynamic half backlash B_d and dB_d/dA_d at centre distance A_d (b0 units), given
     ta = tan(alpha_d) and dalpha_d/dA_d.
@@ -266,7 +327,10 @@ def dynamic_backlash_t(ad, ta, dalpha_dad, k, law):
     if law & LAW_INVOLUTE:
         R = k[K_R]
         ta0 = k[K_SIN_A0] / k[K_COS_A0]
-        bd = k[K_BC] + R * ((ta - math.atan(ta)) - (ta0 - math.atan(ta0)))
+        # alpha_d - alpha0 = atan(x), x = (ta - ta0) / (1 + ta ta0), by atan_small_t: no libm call in the
+        # Newmark loop (a call there costs the constant model too, docs/SIMULATOR.md "Benchmark")
+        x = (ta - ta0) / (1.0 + ta * ta0)
+        bd = k[K_BC] + R * ((ta - ta0) - atan_small_t(x))
         return bd, R * ta * ta * dalpha_dad
     d = ad - k[K_A0]
     return k[K_BC] + d * ta, ta + d * (1.0 + ta * ta) * dalpha_dad
@@ -543,7 +607,9 @@ def mesh_state(q, v, ce, se, omega, c, dynamic, geo):
 def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
     """Accelerations a = q'' (natural time) at one instant; returns the mesh force Fhat.
 
-    ``kk`` = 1 + kappa cos(phi + phi_k) is the stiffness factor; psi is left in geo[0].
+    ``kk`` = 1 + kappa cos(phi + phi_k) is the stiffness factor; psi is left in geo[0]. The U row's
+    load is the mean F_s (a fluctuating torque's phase is not an argument here: the drivers apply it,
+    :func:`step_consts_at`).
     """
     k = step_consts(c)
     delta, ddelta, bd, f, region = mesh_state(q, v, ce, se, omega, c, dynamic, geo)
@@ -571,7 +637,7 @@ def static_equilibrium(c, dynamic, phi0, out):
     positions, so the solve repeats until psi and B_d no longer change (with the gradient force,
     :func:`mesh_direction_t`, the force direction follows the last iterate's geometry).
     """
-    k = step_consts_at(step_consts(c), phi0, c)  # the torques frozen at phi0 too
+    k = step_consts_at(step_consts(c), phi0, c, torque_fluctuates_t(c))  # the torques frozen at phi0 too
     ce, se, _kk = excitation(phi0, c)
     fr = friction_t(ce, se, k)
     Fs = k[K_FS]

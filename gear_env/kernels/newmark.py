@@ -49,6 +49,7 @@ from .mesh import (
     psi_t,
     step_consts,
     step_consts_at,
+    torque_fluctuates_t,
 )
 
 
@@ -385,6 +386,7 @@ def split_step_t(s, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol):
     bd = 0.0
     sp = 0.0
     cp = 0.0
+    tq = torque_fluctuates_t(c)
     for level in range(1, MAX_SPLIT_LEVEL + 1):
         nsub = 1 << level
         ss = s
@@ -397,7 +399,7 @@ def split_step_t(s, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol):
             hc = step_coeffs(2.0 * sub / (wprev + wk), k)
             cek, sek, kkk = excitation(phi_a + sub * (j + 1.0), c)
             ga = (ss[10], ss[11], ss[12], ss[13], ss[14])
-            kq = step_consts_at(k, phi_a + sub * (j + 1.0), c)  # k itself unless the torque fluctuates
+            kq = step_consts_at(k, phi_a + sub * (j + 1.0), c, tq)  # k itself unless the torque fluctuates
             ok, ss, F, region, delta, bd, sp, cp = newmark_try_t(
                 ss, ga, cek, sek, kkk, wk, hc, kq, dynamic, max_iter, tol
             )
