@@ -27,7 +27,7 @@ from . import kernels as K
 from ._numba_cache import announce_compile
 from .env_config import GearSpeedConfig
 from .integration import TOL_N_START, integrate
-from .params import C_FS, GearParams, model_code
+from .params import C_FS, GearParams, model_code, refuse_extensions
 from .tasks import Episode, random_demand
 
 MAX_PERIOD = EK.MAX_PERIOD
@@ -426,6 +426,7 @@ class GearSpeedCore:
     def _set_plant(self, r: int, p: GearParams, equilibrium: bool = False) -> None:
         """Row ``r`` simulates the gear pair ``p`` from now on (the features' static references follow
         its load); ``equilibrium``: also restart it from the static equilibrium (a new episode)."""
+        refuse_extensions(p, "the environment's plant")
         if len(p.consts) != self.C.shape[1]:
             raise ValueError(
                 f"a plant's parameters have {len(p.consts)} constants where the environment's have "

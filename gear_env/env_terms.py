@@ -235,7 +235,7 @@ BACKLASH_MODELS = ("constant", "dynamic")  # params.MODELS (checked by the confi
 
 
 def _params(label: str, v: Any, cfg: Any) -> Any:
-    from .params import C_FS, GearParams  # lazy: keeps this module free of numba
+    from .params import C_FS, GearParams, refuse_extensions  # lazy: keeps this module free of numba
 
     if v is None:
         v = GearParams()
@@ -248,6 +248,7 @@ def _params(label: str, v: Any, cfg: Any) -> Any:
             f"{label} must load the mesh (T_p, T_g > 0): the env scales forces by the static mesh "
             f"force F_s, got F_s = {v.consts[C_FS]:g} k_m0 b0 (need >= {MIN_STATIC_MESH_FORCE:g})"
         )
+    refuse_extensions(v, label)
     return v
 
 

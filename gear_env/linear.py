@@ -35,15 +35,20 @@ def mesh_vector(params: GearParams) -> np.ndarray:
 
 
 def backlash_gradient(params: GearParams) -> np.ndarray:
-    """b = dB_d/dq of the dynamic model at the nominal centre distance (b0 units per b0)."""
+    """b = dB_d/dq of the dynamic model at the nominal centre distance (b0 units per b0): tan(alpha0) along
+    the centre line under the paper's law, sin(alpha0) under the involute law (``GearParams.backlash_law``)."""
     a = math.radians(params.pressure_angle_deg)
-    return math.tan(a) * np.array([-1.0, 0.0, 1.0, 0.0, 0.0])
+    slope = math.sin(a) if params.backlash_law == "involute" else math.tan(a)
+    return slope * np.array([-1.0, 0.0, 1.0, 0.0, 0.0])
 
 
 def matrices(params: GearParams | None = None, model: str = "constant") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(M, C, K) of the linearised system, dimensionless (MODEL.md sec. 5 units).
 
-    ``model="dynamic"`` adds the dependence of B_d on the centre positions (non-symmetric K).
+    ``model="dynamic"`` adds the dependence of B_d on the centre positions (non-symmetric K); with
+    ``params.mesh_force_direction == "gradient"`` the mesh force acts along w = g - b (g = dDelta/dq, b =
+    dB_d/dq), so K = diag + w w^T and C = diag + 2 xi_m w g^T (the force's curvature term, F_s times the
+    second derivatives of Delta - B_d, is left out, as psi's is for the line of action).
     """
     _check_model(model)
     p = params or GearParams()
@@ -51,10 +56,14 @@ def matrices(params: GearParams | None = None, model: str = "constant") -> tuple
     g = mesh_vector(p)
     M = np.diag([d["eps_p"], d["eps_p"], d["eps_g"], d["eps_g"], 1.0])
     K = np.diag([d["lam_p"], d["lam_p"], d["lam_g"], d["lam_g"], 0.0]) + np.outer(g, g)
-    if model == "dynamic":
-        K = K - np.outer(g, backlash_gradient(p))
     cp = 2.0 * p.xi_p * d["sigma_p"] * d["eps_p"]
     cg = 2.0 * p.xi_g * d["sigma_g"] * d["eps_g"]
+    if model == "dynamic" and p.mesh_force_direction == "gradient":
+        w = g - backlash_gradient(p)
+        K = np.diag([d["lam_p"], d["lam_p"], d["lam_g"], d["lam_g"], 0.0]) + np.outer(w, w)
+        return M, np.diag([cp, cp, cg, cg, 0.0]) + 2.0 * p.xi_m * np.outer(w, g), K
+    if model == "dynamic":
+        K = K - np.outer(g, backlash_gradient(p))
     C = np.diag([cp, cp, cg, cg, 0.0]) + 2.0 * p.xi_m * np.outer(g, g)
     return M, C, K
 

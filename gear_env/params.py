@@ -39,11 +39,32 @@ C_COS_A0 = 19  # cos(alpha0)
 C_MU = 20  # tooth sliding-friction coefficient (0 = the paper's eq. 10; analysis extension)
 C_NK = 21  # number N_k of stiffness harmonics in the tail (0: the single cosine kappa, phi_k above)
 C_NE = 22  # number N_e of TE harmonics in the tail (0: the single cosine E1, phi_e above)
-N_CONSTS = 23  # length of the fixed part; the harmonic tail follows it
+# torque fluctuation (GearParams.T_p1, T_g1; 0 = off, the paper's constant torques): the load of the U row is
+# F_s + A_p sin(nu_p phi + ph_p) + A_g sin(nu_g phi + ph_g) at mesh phase phi (kernels.mesh.external_load_t)
+C_NT = 23  # 1.0 if either torque fluctuates, else 0.0
+C_TP1 = 24  # A_p = m_e r_bp T_p1 / (J_p k_m0 b0)
+C_TG1 = 25  # A_g = m_e r_bg T_g1 / (J_g k_m0 b0)
+C_NU_P = 26  # nu_p = torque_order / z_p: torque cycles per mesh period
+C_NU_G = 27  # nu_g = torque_order / z_g
+C_PH_TP = 28  # ph_p: phase [rad] at mesh phase 0 of the interval (GearSimulator advances it per interval)
+C_PH_TG = 29  # ph_g
+N_CONSTS = 30  # length of the fixed part; the harmonic tail follows it
 C_TAIL = N_CONSTS  # tail: kappa_n (cos, sin)(phi_kn), n = 1..N_k, then E_n / b0 (cos, sin)(phi_en), n = 1..N_e
 MAX_HARMONICS = 64
 
 MODELS = ("constant", "dynamic")
+BACKLASH_LAWS = ("paper", "involute")
+"""The dynamic backlash law (``GearParams.backlash_law``): ``"paper"`` eq. (8), b_d = b_c + (a_d - a0)
+tan(alpha_d); ``"involute"`` Yi et al. (2019), as in ROSS: b_d = b_c + (r_bp + r_bg)(inv alpha_d - inv
+alpha0), inv a = tan a - a (to first order sin alpha0 where eq. (8) has tan alpha0)."""
+FORCE_DIRECTIONS = ("line_of_action", "gradient")
+"""How the dynamic model's mesh force acts on the bearings (``GearParams.mesh_force_direction``):
+``"line_of_action"`` eq. (10), along dDelta/dq with psi frozen; ``"gradient"`` as in ROSS, along
+d(Delta - region B_d)/dq, the gradient of the mesh's potential (MODEL.md, extension)."""
+LAW_INVOLUTE = 2
+"""Bit of the kernels' model code (:func:`kernel_code`): the dynamic model under the involute backlash law."""
+FORCE_GRADIENT = 4
+"""Bit of the kernels' model code: the dynamic model's mesh force along the gradient of Delta - region B_d."""
 
 
 def model_code(model: str) -> int:
@@ -51,6 +72,45 @@ def model_code(model: str) -> int:
     if not isinstance(model, str) or model not in MODELS:
         raise ValueError(f"model must be one of {MODELS}, got {model!r}")
     return MODELS.index(model)
+
+
+def kernel_code(model: str, params: GearParams) -> int:
+    """The kernels' model code of ``model`` under ``params``: :func:`model_code` (0 constant, 1 dynamic), and
+    for the dynamic model the bits :data:`LAW_INVOLUTE` (``params.backlash_law == "involute"``) and
+    :data:`FORCE_GRADIENT` (``params.mesh_force_direction == "gradient"``). The constant model has neither
+    (B_d = B_c and psi = alpha0: no law, and the gradient is the line of action), so it stays 0."""
+    code = model_code(model)
+    if code == 1:
+        if params.backlash_law == "involute":
+            code |= LAW_INVOLUTE
+        if params.mesh_force_direction == "gradient":
+            code |= FORCE_GRADIENT
+    return code
+
+
+def refuse_extensions(params: GearParams, where: str) -> None:
+    """Raise ``ValueError`` if ``params`` use an extension that only :func:`gear_env.simulate` and
+    :class:`gear_env.GearSimulator` carry (a fluctuating torque, the involute backlash law, the gradient
+    force direction).
+
+    A torque fluctuating at shaft frequency repeats every z mesh periods, not every one, so the
+    mesh-period maps (Floquet, continuation), the SIMD batch and the environments, whose
+    intervals each start at mesh phase 0, cannot hold its phase."""
+    if params.torque_fluctuates:
+        raise ValueError(
+            f"{where} does not take a torque fluctuation (GearParams.T_p1 = {params.T_p1:g}, T_g1 = {params.T_g1:g} "
+            "N m); use gear_env.simulate or GearSimulator, or set T_p1 = T_g1 = 0"
+        )
+    if params.backlash_law != "paper":
+        raise ValueError(
+            f"{where} takes only the paper's backlash law (GearParams.backlash_law = 'paper'), got "
+            f"{params.backlash_law!r}; use gear_env.simulate or GearSimulator for {params.backlash_law!r}"
+        )
+    if params.mesh_force_direction != "line_of_action":
+        raise ValueError(
+            f"{where} takes only the paper's mesh force direction (GearParams.mesh_force_direction = "
+            f"'line_of_action'), got {params.mesh_force_direction!r}; use gear_env.simulate or GearSimulator"
+        )
 
 
 # allowed ranges of the SI inputs: (low, high, low inclusive?, high inclusive?)
@@ -77,7 +137,23 @@ BOUNDS: dict[str, tuple[float, float, bool, bool]] = {
     "b0": (1e-9, 1.0, True, True),
     "gravity": (0.0, 1000.0, True, True),
     "friction": (0.0, 1.0, True, True),
+    "T_p1": (0.0, 1e7, True, True),
+    "T_g1": (0.0, 1e7, True, True),
+    "phi_Tp": (-1e3, 1e3, True, True),
+    "phi_Tg": (-1e3, 1e3, True, True),
+    "torque_order": (0.0, 1000.0, False, True),
 }
+EXTENSION_DEFAULTS: dict[str, Any] = {
+    "T_p1": 0.0,
+    "T_g1": 0.0,
+    "phi_Tp": 0.0,
+    "phi_Tg": 0.0,
+    "torque_order": 1.0,
+    "backlash_law": "paper",
+    "mesh_force_direction": "line_of_action",
+}
+"""Fields that :meth:`GearParams.to_dict` leaves out at these values, so that the dict of the
+paper's model is what it was before they existed."""
 TEETH_RANGE = (5, 1000)
 
 
@@ -137,6 +213,26 @@ class GearParams:
             when given, ``e_m1`` and ``phi_e`` are set to its first harmonic. More than one TE
             harmonic cannot be combined with ``friction`` (whose sliding direction is read from the
             first harmonic's phase).
+        T_p1, T_g1: amplitudes of a torque fluctuation [N m], in [0, 1e7] (above T_p or T_g the torque
+            reverses during part of the cycle, as in gear rattle): T_p(t) = T_p + T_p1 sin(n theta_p(t)
+            + phi_Tp) with theta_p = phi / z_p the pinion's rotation since t = 0 (phi: mesh phase),
+            likewise T_g(t) with theta_g = phi / z_g.
+            0 (default): the paper's constant torques, bit for bit. Carried by :func:`gear_env.simulate`
+            and :class:`gear_env.GearSimulator` (fixed steps); the other entry points refuse it
+            (:func:`refuse_extensions`).
+        phi_Tp, phi_Tg: phases of the torque fluctuations at t = 0 [rad].
+        torque_order: n, torque cycles per shaft revolution (> 0, default 1: once per revolution,
+            as in ROSS's ``test_mesh_with_backlash``), the same for both shafts.
+        backlash_law: the dynamic model's backlash law, ``"paper"`` (default, eq. 8) or
+            ``"involute"`` (Yi et al. 2019, ROSS's law; :data:`BACKLASH_LAWS`). Carried by
+            :func:`gear_env.simulate` and :class:`gear_env.GearSimulator`; the other entry points
+            refuse ``"involute"``.
+        mesh_force_direction: how the dynamic model's mesh force acts on the bearings:
+            ``"line_of_action"`` (default, eq. 10: F along dDelta/dq, psi frozen) or ``"gradient"``
+            (ROSS: F along d(Delta - region B_d)/dq, the gradient of the mesh's potential, which adds the
+            backlash's own dependence on the centre positions and psi's; :data:`FORCE_DIRECTIONS`). Carried
+            by :func:`gear_env.simulate` and :class:`gear_env.GearSimulator`; the other entry points refuse
+            ``"gradient"``.
     """
 
     pressure_angle_deg: float = 20.0
@@ -165,12 +261,24 @@ class GearParams:
     friction: float = 0.0
     stiffness_harmonics: tuple[tuple[float, float], ...] = ()
     te_harmonics: tuple[tuple[float, float], ...] = ()
+    T_p1: float = 0.0
+    T_g1: float = 0.0
+    phi_Tp: float = 0.0
+    phi_Tg: float = 0.0
+    torque_order: float = 1.0
+    backlash_law: str = "paper"
+    mesh_force_direction: str = "line_of_action"
     _consts: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self._set_harmonics()
         for f in fields(self):
-            if f.name.startswith("_") or f.name in ("stiffness_harmonics", "te_harmonics"):
+            if f.name.startswith("_") or f.name in (
+                "stiffness_harmonics",
+                "te_harmonics",
+                "backlash_law",
+                "mesh_force_direction",
+            ):
                 continue
             v = getattr(self, f.name)
             if f.name == "b0" and v is None:
@@ -188,6 +296,12 @@ class GearParams:
                 )
             object.__setattr__(self, f.name, float(v))
             _check_range(f.name, float(v))
+        if not isinstance(self.backlash_law, str) or self.backlash_law not in BACKLASH_LAWS:
+            raise ValueError(f"GearParams.backlash_law must be one of {BACKLASH_LAWS}, got {self.backlash_law!r}")
+        if not isinstance(self.mesh_force_direction, str) or self.mesh_force_direction not in FORCE_DIRECTIONS:
+            raise ValueError(
+                f"GearParams.mesh_force_direction must be one of {FORCE_DIRECTIONS}, got {self.mesh_force_direction!r}"
+            )
         if len(self.te_harmonics) > 1 and self.friction > 0.0:
             raise ValueError(
                 "GearParams.friction must be 0 when te_harmonics has more than one harmonic "
@@ -269,6 +383,23 @@ class GearParams:
         return 2.0 * self.xi_g * math.sqrt(self.k_g * self.m_g)
 
     @property
+    def torque_fluctuates(self) -> bool:
+        """True if either torque fluctuates (``T_p1`` or ``T_g1`` > 0)."""
+        return self.T_p1 > 0.0 or self.T_g1 > 0.0
+
+    def consts_at_period(self, periods: int) -> np.ndarray:
+        """:attr:`consts` for an interval that starts ``periods`` mesh periods after t = 0: the
+        torque fluctuation's phases advanced by 2 pi nu periods (the kernels count the mesh phase
+        from 0 in every interval). The constants themselves if the torque does not fluctuate."""
+        if not self.torque_fluctuates or periods == 0:
+            return self._consts
+        c = self._consts.copy()
+        for nu, ph in ((C_NU_P, C_PH_TP), (C_NU_G, C_PH_TG)):
+            c[ph] = math.fmod(c[ph] + 2.0 * math.pi * math.fmod(c[nu] * periods, 1.0), 2.0 * math.pi)
+        c.setflags(write=False)
+        return c
+
+    @property
     def static_mesh_load(self) -> float:
         """Static mesh force m_e (r_bp T_p/J_p + r_bg T_g/J_g) [N]."""
         return self.m_e * (self.r_bp * self.T_p / self.J_p + self.r_bg * self.T_g / self.J_g)
@@ -311,6 +442,14 @@ class GearParams:
         ne = len(self.te_harmonics) if len(self.te_harmonics) > 1 else 0
         c[C_NK] = nk
         c[C_NE] = ne
+        if self.torque_fluctuates:
+            c[C_NT] = 1.0
+            c[C_TP1] = me * self.r_bp * self.T_p1 / (self.J_p * self.k_m0 * b0)
+            c[C_TG1] = me * self.r_bg * self.T_g1 / (self.J_g * self.k_m0 * b0)
+            c[C_NU_P] = self.torque_order / self.z_p
+            c[C_NU_G] = self.torque_order / self.z_g
+            c[C_PH_TP] = self.phi_Tp
+            c[C_PH_TG] = self.phi_Tg
         # the tail holds (a cos(phase), a sin(phase)) per harmonic (kernels.mesh.excitation)
         tail = [v for a, ph in self.stiffness_harmonics[:nk] for v in (a * math.cos(ph), a * math.sin(ph))]
         tail += [v for a, ph in self.te_harmonics[:ne] for v in (a / b0 * math.cos(ph), a / b0 * math.sin(ph))]
@@ -359,7 +498,8 @@ class GearParams:
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict of the SI inputs (JSON-serialisable). The harmonic fields appear only when
-        set, as lists of [amplitude, phase], so the dict of single-cosine parameters is unchanged."""
+        set, as lists of [amplitude, phase], and the torque fluctuation and backlash law only away
+        from their defaults, so the dict of the paper's single-cosine parameters is unchanged."""
         out: dict[str, Any] = {}
         for f in fields(self):
             if f.name.startswith("_"):
@@ -369,6 +509,8 @@ class GearParams:
                 if not v:
                     continue
                 v = [list(pair) for pair in v]
+            if f.name in EXTENSION_DEFAULTS and v == EXTENSION_DEFAULTS[f.name]:
+                continue
             out[f.name] = v
         return out
 

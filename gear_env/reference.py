@@ -52,6 +52,12 @@ class RefConsts:
     # ((E_n, phi_en), ...) [b0]; one term each for the paper's single cosines
     stiffness: tuple[tuple[float, float], ...] = ()
     te: tuple[tuple[float, float], ...] = ()
+    # the dynamic backlash law: "paper" (eq. 8) or "involute" (Yi et al. 2019, GearParams.backlash_law)
+    law: str = "paper"
+    # a fluctuating torque: the U row's load F_s + sum_j A_j sin(nu_j phi + ph_j), ((A_p, nu_p, ph_p), (A_g, ...))
+    torque: tuple[tuple[float, float, float], ...] = ()
+    # the dynamic model's mesh force along the gradient of Delta - region B_d (GearParams.mesh_force_direction)
+    gradient: bool = False
 
     @classmethod
     def from_params(cls, p: GearParams) -> RefConsts:
@@ -90,7 +96,19 @@ class RefConsts:
             g_g=p.m_g * p.gravity / (p.k_m0 * b0),
             stiffness=tuple(p.stiffness_harmonics) or ((p.kappa, p.phi_k),),
             te=tuple((a / b0, ph) for a, ph in p.te_harmonics) or ((p.e_m1 / b0, p.phi_e),),
+            law=p.backlash_law,
+            gradient=p.mesh_force_direction == "gradient",
+            # T_j(t) = T_j + T_j1 sin(order theta_j + phi_Tj), theta_j = phi / z_j: its share of the U row's load
+            torque=(
+                (me * rbp * p.T_p1 / (p.J_p * p.k_m0 * b0), p.torque_order / p.z_p, p.phi_Tp),
+                (me * rbg * p.T_g1 / (p.J_g * p.k_m0 * b0), p.torque_order / p.z_g, p.phi_Tg),
+            ),
         )
+
+
+def load(phi: float, k: RefConsts) -> float:
+    """The U row's load at mesh phase phi (from t = 0): F_s plus the torque fluctuation's share."""
+    return k.F_s + sum(a * math.sin(nu * phi + ph) for a, nu, ph in k.torque)
 
 
 def stiffness_factor(phi: float, k: RefConsts) -> float:
@@ -114,6 +132,8 @@ def mesh_geometry(q: np.ndarray, k: RefConsts, model: str) -> tuple[float, float
     ad = math.hypot(d1, d2)
     alpha_d = math.acos(k.R / ad)
     psi = alpha_d + math.asin((q[3] - q[1]) / ad)
+    if k.law == "involute":  # Yi et al. (2019): B_c + R (inv alpha_d - inv alpha0), inv a = tan a - a
+        return psi, k.B_c + k.R * ((math.tan(alpha_d) - alpha_d) - (math.tan(k.alpha0) - k.alpha0))
     return psi, k.B_c + (ad - k.A0) * math.tan(alpha_d)
 
 
@@ -145,6 +165,33 @@ def mesh_quantities(y: np.ndarray, omega: float, k: RefConsts, model: str) -> tu
     return delta, ddelta, bd, psi
 
 
+def force_gradient(q: np.ndarray, phi: float, k: RefConsts, model: str, region: int) -> np.ndarray:
+    """d(Delta - region B_d)/dq (5 entries) by central differences of :func:`mesh_geometry` and Delta: the
+    direction of the mesh force with ``GearParams.mesh_force_direction = "gradient"`` (ROSS's force)."""
+
+    def gap(qq: np.ndarray) -> float:
+        psi, bd = mesh_geometry(qq, k, model)
+        e = transmission_error(phi, k)[0]
+        return (qq[0] - qq[2]) * math.sin(psi) - (qq[1] - qq[3]) * math.cos(psi) + qq[4] - e - region * bd
+
+    h = 1e-3  # b0: B_d and psi come from A0 ~ 1e3-1e4 b0, so a smaller step loses digits to round-off
+    out = np.empty(5)
+    for i in range(5):
+        d = np.zeros(5)
+        d[i] = h
+        out[i] = (gap(q + d) - gap(q - d)) / (2.0 * h)
+    return out
+
+
+def _direction(q: np.ndarray, phi: float, psi: float, k: RefConsts, model: str, region: int) -> np.ndarray:
+    """The generalised force of a unit mesh force on (X_p, Y_p, X_g, Y_g), with the sign of dDelta/dq: eq. (10)'s
+    line of action (psi frozen), or the gradient of Delta - region B_d (:func:`force_gradient`)."""
+    if k.gradient and model == "dynamic":
+        return force_gradient(q, phi, k, model, region)[:4]
+    s, c = math.sin(psi), math.cos(psi)
+    return np.array([s, -c, -s, c])
+
+
 def contact_region(delta: float, bd: float) -> int:
     """+1 drive-side contact (Delta >= B_d), 0 apart, -1 back-side contact (Delta <= -B_d)."""
     if delta >= bd:
@@ -163,14 +210,14 @@ def rhs(s: float, y: np.ndarray, omega: float, k: RefConsts, model: str, region:
     reg = contact_region(delta, bd) if region is None else region
     f = delta - bd if reg > 0 else (delta + bd if reg < 0 else 0.0)
     F = 2.0 * k.xi_m * ddelta + stiffness_factor(y[10], k) * f
-    s_, c_ = math.sin(psi), math.cos(psi)
+    g = _direction(y[0:5], y[10], psi, k, model, reg)
     out = np.empty(11)
     out[0:5] = y[5:10]
-    out[5] = -(2.0 * k.xi_p * k.sig_p * y[5] + k.sig_p**2 * y[0] + F * s_ / k.eps_p)
-    out[6] = -(2.0 * k.xi_p * k.sig_p * y[6] + k.sig_p**2 * y[1] - F * c_ / k.eps_p) - k.g_p / k.eps_p
-    out[7] = -(2.0 * k.xi_g * k.sig_g * y[7] + k.sig_g**2 * y[2] - F * s_ / k.eps_g)
-    out[8] = -(2.0 * k.xi_g * k.sig_g * y[8] + k.sig_g**2 * y[3] + F * c_ / k.eps_g) - k.g_g / k.eps_g
-    out[9] = k.F_s - F
+    out[5] = -(2.0 * k.xi_p * k.sig_p * y[5] + k.sig_p**2 * y[0] + F * g[0] / k.eps_p)
+    out[6] = -(2.0 * k.xi_p * k.sig_p * y[6] + k.sig_p**2 * y[1] + F * g[1] / k.eps_p) - k.g_p / k.eps_p
+    out[7] = -(2.0 * k.xi_g * k.sig_g * y[7] + k.sig_g**2 * y[2] + F * g[2] / k.eps_g)
+    out[8] = -(2.0 * k.xi_g * k.sig_g * y[8] + k.sig_g**2 * y[3] + F * g[3] / k.eps_g) - k.g_g / k.eps_g
+    out[9] = load(y[10], k) - F
     out[10] = omega
     return out
 
@@ -184,14 +231,16 @@ def reference_initial_state(params: GearParams | None = None, model: str = "dyna
     k = RefConsts.from_params(params or GearParams())
     lam_p, lam_g = k.eps_p * k.sig_p**2, k.eps_g * k.sig_g**2
     psi, bd = k.alpha0, k.B_c
+    fs = load(0.0, k)  # a fluctuating torque frozen at phase 0, like the TE
     q = np.zeros(5)
     for _ in range(200):
         s, c = math.sin(psi), math.cos(psi)
-        q[0] = -k.F_s * s / lam_p
-        q[1] = (k.F_s * c - k.g_p) / lam_p
-        q[2] = k.F_s * s / lam_g
-        q[3] = -(k.F_s * c + k.g_g) / lam_g
-        q[4] = bd + k.F_s + transmission_error(0.0, k)[0] - ((q[0] - q[2]) * s - (q[1] - q[3]) * c)
+        g = _direction(q, 0.0, psi, k, model, 1)  # drive-side contact
+        q[0] = -fs * g[0] / lam_p
+        q[1] = -(fs * g[1] + k.g_p) / lam_p
+        q[2] = -fs * g[2] / lam_g
+        q[3] = -(fs * g[3] + k.g_g) / lam_g
+        q[4] = bd + fs + transmission_error(0.0, k)[0] - ((q[0] - q[2]) * s - (q[1] - q[3]) * c)
         psi_new, bd_new = mesh_geometry(q, k, model)
         if abs(psi_new - psi) < 1e-16 and abs(bd_new - bd) < 1e-15:
             break

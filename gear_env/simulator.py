@@ -26,7 +26,7 @@ from .errors import SimulationDivergedError
 from .integration import NEWTON_MAX_ITER as NEWTON_MAX_ITER  # re-exported (older imports)
 from .integration import NEWTON_TOL as NEWTON_TOL
 from .integration import TOL_N_START, integrate
-from .params import C_E1, C_PHI_E, GearParams, model_code, stack_consts
+from .params import C_E1, C_PHI_E, GearParams, kernel_code, model_code, refuse_extensions, stack_consts
 
 SIM_COMPILE_TIME = "15 s on an idle 2-core machine, several times that under load"
 """What the first-use notice says the simulator kernels take to compile (measured: 13 s for both models)."""
@@ -121,7 +121,7 @@ def default_initial_state(params: GearParams, model: str = "dynamic") -> np.ndar
     units (derivatives per unit natural time).
     """
     out = np.zeros(K.NSTATE)
-    K.static_equilibrium(params.consts, model_code(model), 0.0, out)
+    K.static_equilibrium(params.consts, kernel_code(model, params), 0.0, out)
     return out
 
 
@@ -302,12 +302,24 @@ class GearSimulator:
         self._n_tol = TOL_N_START
         announce_compile("drivers", "the simulator kernels", SIM_COMPILE_TIME)  # once per process, not per step
         self.model = model
-        self.model_code = model_code(model)
+        self.model_code = kernel_code(model, self.params)  # 2: the dynamic model under the involute backlash law
+        if self.tol is not None and self.params.torque_fluctuates:
+            raise ValueError(
+                "tol (error control) does not take a torque fluctuation (GearParams.T_p1, T_g1 > 0): "
+                "its periods restart the mesh phase; give steps_per_period instead"
+            )
         self.auto_steps = steps_per_period is None
         self.steps_per_period = resolve_steps(steps_per_period, check_omega(omega))
         """Steps per mesh period of the last interval (fixed unless ``auto_steps``)."""
         self._consts = K.readonly(np.ascontiguousarray(self.params.consts))
         self.reset(initial_state=initial_state, omega=omega)
+
+    def _interval_consts(self) -> np.ndarray:
+        """The constants of the next interval: those of the parameters, with a fluctuating torque's
+        phases advanced to the periods already done (every interval starts at mesh phase 0)."""
+        if not self.params.torque_fluctuates:
+            return self._consts
+        return K.readonly(np.ascontiguousarray(self.params.consts_at_period(self.periods_done)))
 
     def _steps(self, w0: float, w1: float) -> int:
         """Steps per mesh period of an interval from w0 to w1 (updates ``steps_per_period``)."""
@@ -352,7 +364,7 @@ class GearSimulator:
                 self._n_tol = int(r.steps_last)
                 self.steps_per_period = 2 * self._n_tol
         else:
-            r = integrate(x, a, self._consts, self.model_code, w0, w1, n, self._steps(w0, w1))
+            r = integrate(x, a, self._interval_consts(), self.model_code, w0, w1, n, self._steps(w0, w1))
         if r.status != K.OK:
             self._raise(r.status, r.done, w0)
         self.x, self.a = x, a
@@ -369,7 +381,7 @@ class GearSimulator:
         x = self.x.copy()
         a = self.a.copy()
         nsp = 2 * self._n_tol if self.tol is not None else self._steps(w0, w1)
-        r = integrate(x, a, self._consts, self.model_code, w0, w1, n, nsp, record=True)
+        r = integrate(x, a, self._interval_consts(), self.model_code, w0, w1, n, nsp, record=True)
         if r.status != K.OK:
             self._raise(r.status, (r.done - 1) // nsp, w0)
         out = r.record
@@ -619,6 +631,8 @@ def simulate_batch(
     n_tr = check_count(transient, "transient", 0)
     code = model_code(model)
     ps = _check_params_rows(params, w.size)
+    for q in ps:
+        refuse_extensions(q, "simulate_batch")
     S = None if initial_states is None else _check_states_rows(initial_states)
     n = max(w.size, len(ps), 1 if S is None else len(S))
     for name, size in (("omegas", w.size), ("params", len(ps)), ("initial_states", 1 if S is None else len(S))):

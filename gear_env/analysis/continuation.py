@@ -51,7 +51,7 @@ import numpy as np
 from .. import kernels as K
 from .._numba_cache import announce_compile
 from ..errors import SimulationDivergedError
-from ..params import GearParams, model_code
+from ..params import GearParams, model_code, refuse_extensions
 from ..simulator import NEWTON_MAX_ITER, NEWTON_TOL, GearSimulator, check_omega, default_steps_per_period
 from . import tangent as TG
 
@@ -249,6 +249,7 @@ class OrbitMap:
         self.model = model
         self.code = model_code(model)
         self.params = params if params is not None else GearParams()
+        refuse_extensions(self.params, "continuation")
         self.period = int(period)
         self.fixed_steps = steps_per_period
         self._c = K.readonly(np.ascontiguousarray(self.params.consts))

@@ -35,7 +35,7 @@ import numpy as np
 from .. import kernels as K
 from ..errors import SimulationDivergedError
 from ..integration import integrate
-from ..params import GearParams, model_code
+from ..params import GearParams, model_code, refuse_extensions
 from ..simulator import (
     GearSimulator,
     check_count,
@@ -112,6 +112,7 @@ class PeriodMap:
         self.params = params if params is not None else GearParams()
         if not isinstance(self.params, GearParams):
             raise ValueError(f"params must be a GearParams, got {type(self.params).__name__}")
+        refuse_extensions(self.params, "Floquet analysis")
         self.period = check_count(period, "period")
         self.steps = resolve_steps(steps_per_period, self.omega)
         self._c = np.ascontiguousarray(self.params.consts)

@@ -22,7 +22,7 @@ import numpy as np
 
 from .. import kernels as K
 from ..errors import SimulationDivergedError
-from ..params import GearParams, model_code
+from ..params import GearParams, model_code, refuse_extensions
 from ..simulator import NEWTON_MAX_ITER, NEWTON_TOL, _check_state, check_count, check_omega, resolve_steps
 
 DEFAULT_D0 = 1e-8
@@ -79,6 +79,7 @@ def largest_lyapunov(
     if not (isinstance(d0, (int, float)) and 0.0 < float(d0) < 1e-2 and math.isfinite(d0)):
         raise ValueError(f"d0 must be a finite separation in (0, 1e-2) b0, got {d0!r}")
     params = params if params is not None else GearParams()
+    refuse_extensions(params, "lyapunov")
     sim = GearSimulator(params, model, nsteps, w, None if state is None else _check_state(state))
     if tr:
         sim.advance(tr)

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from .. import kernels as K
-from ..params import GearParams, model_code
+from ..params import GearParams, model_code, refuse_extensions
 from ..simulator import GearSimulator, check_count, check_omega, check_steps, default_steps_per_period
 from .checkpoint import Checkpoint
 from .classify import (
@@ -76,6 +76,9 @@ class SweepConfig:
     lyap_tol: float = DEFAULT_LYAP_TOL
     max_extend: int = 4
     d0: float = DEFAULT_D0
+
+    def __post_init__(self) -> None:
+        refuse_extensions(self.params, "sweep")
 
     def steps(self, omega: float) -> int:
         return steps_for(omega, self.steps_per_period, self.adaptive_steps)

@@ -157,11 +157,16 @@ from .mesh import (
     geometry,
     geometry_t,
     geometry_taylor_t,
+    load_table,
+    mesh_direction_t,
     mesh_state,
     mesh_t,
     psi_t,
     static_equilibrium,
     step_consts,
+    step_consts_at,
+    torque_fluctuates_t,
+    with_load_t,
 )
 from .newmark import (
     DQ_LINEAR,

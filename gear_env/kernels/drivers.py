@@ -46,7 +46,20 @@ from .layout import (
     TWO_PI,
     WORK_SIZE,
 )
-from .mesh import eom_residual_t, excitation, force_direction_t, force_t, friction_t, mesh_t, psi_t, step_consts
+from .mesh import (
+    eom_residual_t,
+    excitation,
+    force_t,
+    friction_t,
+    load_table,
+    mesh_direction_t,
+    mesh_t,
+    psi_t,
+    step_consts,
+    step_consts_at,
+    torque_fluctuates_t,
+    with_load_t,
+)
 from .newmark import (
     LOCATE_TOL_STEP,
     _diverged_t,
@@ -84,13 +97,14 @@ def start_step(x, a, phi0, w0, c, dynamic, work):
     arithmetic of :func:`~gear_env.kernels.mesh.accel` (a = -r(0, q, v)) from the inline leaves,
     so that a driver's first call compiles no array-form kernel (accel, mesh_state, geometry).
     """
-    k = step_consts(c)
+    k = step_consts_at(step_consts(c), phi0, c, torque_fluctuates_t(c))
     ce, se, kk = excitation(phi0, c)
     s = (x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9])
     delta, ddelta, bd, f, region, sp, cp, _db0, _db1, _dp0, _dp1 = mesh_t(s, ce, se, w0, k, dynamic)
     F = force_t(ddelta, f, kk, k)
     fr = friction_t(ce, se, k)  # [friction extension] 0 unless GearParams.friction > 0
-    r = eom_residual_t((0.0, 0.0, 0.0, 0.0, 0.0), s, F, force_direction_t(sp, cp, fr, k), k)  # a = -r(0, q, v)
+    w = mesh_direction_t(sp, cp, fr, k, dynamic, region, _db0, _db1, _dp0, _dp1, x[0] - x[2], x[1] - x[3])
+    r = eom_residual_t((0.0, 0.0, 0.0, 0.0, 0.0), s, F, w, k)  # a = -r(0, q, v)
     for i in range(NDOF):
         a[i] = -r[i]
     work[0] = psi_t(sp, cp, c, dynamic)
@@ -111,6 +125,8 @@ def integrate_record(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, out, ma
     total = n_periods * n_steps
     dphi = TWO_PI / n_steps
     ww = (w1 * w1 - w0 * w0) / total
+    tq = torque_fluctuates_t(c)  # read once: the loop's steps then take k untouched when it is False
+    ld = load_table(phi0, dphi, total, c)  # a fluctuating torque's load per step (empty if constant)
     F0, region, delta, bd = start_step(x, a, phi0, w0, c, dynamic, work)
     for i in range(NSTATE):
         out[0, i] = x[i]
@@ -134,8 +150,9 @@ def integrate_record(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, out, ma
             wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
             m = (j + 1) % n_steps
             if split == 0.0:
+                kq = with_load_t(k, ld[j], tq)  # k itself unless the torque fluctuates
                 ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(
-                    s, g, tab[m, 0], tab[m, 1], tab[m, 2], wb, hc, k, dynamic, max_iter, tol
+                    s, g, tab[m, 0], tab[m, 1], tab[m, 2], wb, hc, kq, dynamic, max_iter, tol
                 )
                 if not ok:
                     break
@@ -314,6 +331,8 @@ def stats_segment(
     total = n_periods * n_steps
     dphi = TWO_PI / n_steps
     ww = (w1 * w1 - w0 * w0) / total
+    tq = torque_fluctuates_t(c)  # read once: the loop's steps then take k untouched when it is False
+    ld = load_table(phi0, dphi, total, c)  # a fluctuating torque's load per step (empty if constant)
     status = OK
     done = n_periods
     if rs[RS_J] >= 0.0:  # continue after split_resume took step j - 1
@@ -351,8 +370,9 @@ def stats_segment(
     while j < total:  # the hot loop: no calls
         wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
         m = (j + 1) % n_steps
+        kq = with_load_t(k, ld[j], tq)  # k itself unless the torque fluctuates
         ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(
-            s, g, tf[m, 0], tf[m, 1], tf[m, 2], wb, hc, k, dynamic, max_iter, tol
+            s, g, tf[m, 0], tf[m, 1], tf[m, 2], wb, hc, kq, dynamic, max_iter, tol
         )
         if not ok:
             break

@@ -13,11 +13,16 @@ term                           leaves (change them together)
 =============================  ======================================================================
 backlash law (eq. 9)           :func:`backlash`, :func:`backlash_branch`, :func:`backlash_slopes`,
                                :func:`backlash_inverse`
+dynamic backlash B_d (eq. 8)   :func:`dynamic_backlash_t` (the paper's law or Yi et al.'s involute law,
+                               whose arctangent is the call-free :func:`atan_small_t`)
 dynamic geometry (eqs. 5-8)    :func:`geometry_t`, its first-order update :func:`geometry_taylor_t`
+torque fluctuation             :func:`external_load_t` (the U row's load), :func:`step_consts_at`;
+                               in the loops :func:`load_table` and :func:`with_load_t`
 excitation (TE, stiffness)     :func:`excitation`
 mesh deflection and rate       :func:`deflection_t`, its gradient :func:`deflection_gradient_t`
 mesh force                     :func:`force_t`, its partial derivatives :func:`force_gradient_t`
 friction extension             :func:`friction_t`, the tilt in :func:`force_direction_t`
+force along the gradient       :func:`mesh_direction_t` (``GearParams.mesh_force_direction``)
 bearings, weights, inertia     :func:`bearing_t`, :func:`eom_residual_t`
 equations of motion            :func:`eom_residual_t`: r = a + C v + K q + w F - ext (accel = -r(0))
 =============================  ======================================================================
@@ -40,6 +45,9 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+from numba.cpython.unsafe.tuple import tuple_setitem
+
 from ..params import (
     C_A0,
     C_ALPHA0,
@@ -55,6 +63,11 @@ from ..params import (
     C_MU,
     C_NE,
     C_NK,
+    C_NT,
+    C_NU_G,
+    C_NU_P,
+    C_PH_TG,
+    C_PH_TP,
     C_PHI_E,
     C_PHI_K,
     C_R,
@@ -62,9 +75,13 @@ from ..params import (
     C_SIG_P,
     C_SIN_A0,
     C_TAIL,
+    C_TG1,
+    C_TP1,
     C_XI_BG,
     C_XI_BP,
     C_XI_M,
+    FORCE_GRADIENT,
+    LAW_INVOLUTE,
 )
 from .jit import kernel, kernel_inline
 from .layout import (
@@ -125,6 +142,60 @@ def step_consts(c):
         math.cos(c[C_PHI_E]),
         math.sin(c[C_PHI_E]),
     )
+
+
+@kernel_inline
+def external_load_t(phi, c):
+    """The U row's external load (per unit k_m0 b0) at mesh phase ``phi`` of the interval: F_s,
+    plus with a fluctuating torque (``GearParams.T_p1``, ``T_g1``; ``c[C_NT]`` = 1)
+    A_p sin(nu_p phi + ph_p) + A_g sin(nu_g phi + ph_g), A_j = m_e r_bj T_j1 / (J_j k_m0 b0):
+    m_e (r_bp T_p(t)/J_p + r_bg T_g(t)/J_g) / (k_m0 b0), the torques' share of the relative
+    acceleration (MODEL.md sec. 3, F_s). nu_j = torque order / z_j (cycles per mesh period); the
+    phases ph_j are those at the interval's phase 0 (``GearParams.consts_at_period``)."""
+    if c[C_NT] == 0.0:
+        return c[C_FS]
+    return (
+        c[C_FS] + c[C_TP1] * math.sin(c[C_NU_P] * phi + c[C_PH_TP]) + c[C_TG1] * math.sin(c[C_NU_G] * phi + c[C_PH_TG])
+    )
+
+
+@kernel_inline
+def torque_fluctuates_t(c):
+    """True if the constants ``c`` carry a torque fluctuation (``GearParams.T_p1`` or ``T_g1`` > 0)."""
+    return c[C_NT] != 0.0
+
+
+@kernel_inline
+def step_consts_at(k, phi, c, fluctuates):
+    """The step constants ``k`` (:func:`step_consts`) for a step ending at mesh phase ``phi``:
+    ``k`` itself, unless ``fluctuates`` (:func:`torque_fluctuates_t` (c), read once before a loop of
+    steps), then ``k`` with k[K_FS] replaced by :func:`external_load_t` (phi) (the equations of motion
+    read the load there, :func:`eom_residual_t`)."""
+    if not fluctuates:
+        return k
+    return tuple_setitem(k, K_FS, external_load_t(phi, c))
+
+
+@kernel_inline
+def with_load_t(k, load, fluctuates):
+    """:func:`step_consts_at` with the load given (a row of :func:`load_table`): what the Newmark loops
+    use, so that no sine (a library call) sits in a loop of steps (a call there slows every model,
+    also with the torque constant, by keeping the loop's registers saved around it)."""
+    if not fluctuates:
+        return k
+    return tuple_setitem(k, K_FS, load)
+
+
+@kernel
+def load_table(phi0, dphi, total, c):
+    """:func:`external_load_t` at the ends of ``total`` steps of ``dphi`` from mesh phase ``phi0`` (an
+    empty array when the torque is constant: the loops then never read it)."""
+    if not torque_fluctuates_t(c):
+        return np.empty(0)
+    out = np.empty(total)
+    for j in range(total):
+        out[j] = external_load_t(phi0 + dphi * (j + 1), c)
+    return out
 
 
 @kernel_inline
@@ -213,8 +284,62 @@ def backlash_inverse(f, bd):
 
 
 @kernel_inline
-def geometry_t(q0, q1, q2, q3, k):
-    """Dynamic-model geometry (eqs. 5-8) at positions (X_p, Y_p, X_g, Y_g), no trigonometric call.
+def atan_small_t(x):
+    """atan(x) without a library call: three half-angle reductions atan(x) = 2 atan(x / (1 + sqrt(1 + x^2)))
+    bring |x| below tan(pi/16) = 0.199, where 16 terms of the Taylor series are exact to round-off (the
+    first omitted term is below 2e-25 of the value)."""
+    y = x / (1.0 + math.sqrt(1.0 + x * x))  # written out, no loop: this sits inside the Newmark loops
+    y = y / (1.0 + math.sqrt(1.0 + y * y))
+    y = y / (1.0 + math.sqrt(1.0 + y * y))
+    y2 = y * y
+    # sum_{n odd <= 31} (-1)^((n-1)/2) y^(n-1) / n by Horner in y^2, written out
+    s = -1.0 / 31.0
+    s = 1.0 / 29.0 + y2 * s
+    s = -1.0 / 27.0 + y2 * s
+    s = 1.0 / 25.0 + y2 * s
+    s = -1.0 / 23.0 + y2 * s
+    s = 1.0 / 21.0 + y2 * s
+    s = -1.0 / 19.0 + y2 * s
+    s = 1.0 / 17.0 + y2 * s
+    s = -1.0 / 15.0 + y2 * s
+    s = 1.0 / 13.0 + y2 * s
+    s = -1.0 / 11.0 + y2 * s
+    s = 1.0 / 9.0 + y2 * s
+    s = -1.0 / 7.0 + y2 * s
+    s = 1.0 / 5.0 + y2 * s
+    s = -1.0 / 3.0 + y2 * s
+    s = 1.0 / 1.0 + y2 * s
+    return 8.0 * y * s
+
+
+@kernel_inline
+def dynamic_backlash_t(ad, ta, dalpha_dad, k, law):
+    """The dynamic half backlash B_d and dB_d/dA_d at centre distance A_d (b0 units), given
+    ta = tan(alpha_d) and dalpha_d/dA_d.
+
+    The paper's law (eq. 8; ``law``, the kernels' model code, without the bit LAW_INVOLUTE):
+    B_d = B_c + (A_d - A0) tan(alpha_d). With the bit LAW_INVOLUTE (``GearParams.backlash_law =
+    "involute"``), Yi et al. (2019) as in
+    ROSS's ``multi_rotor/mesh.py``: B_d = B_c + R (inv alpha_d - inv alpha0), inv a = tan a - a,
+    R = (r_bp + r_bg)/b0; dB_d/dA_d = R tan^2(alpha_d) dalpha_d/dA_d. To first order in A_d - A0
+    the involute law is (A_d - A0) sin(alpha0) where eq. (8) has tan(alpha0).
+    """
+    if law & LAW_INVOLUTE:
+        R = k[K_R]
+        ta0 = k[K_SIN_A0] / k[K_COS_A0]
+        # alpha_d - alpha0 = atan(x), x = (ta - ta0) / (1 + ta ta0), by atan_small_t: no libm call in the
+        # Newmark loop (a call there costs the constant model too, docs/SIMULATOR.md "Benchmark")
+        x = (ta - ta0) / (1.0 + ta * ta0)
+        bd = k[K_BC] + R * ((ta - ta0) - atan_small_t(x))
+        return bd, R * ta * ta * dalpha_dad
+    d = ad - k[K_A0]
+    return k[K_BC] + d * ta, ta + d * (1.0 + ta * ta) * dalpha_dad
+
+
+@kernel_inline
+def geometry_t(q0, q1, q2, q3, k, law):
+    """Dynamic-model geometry (eqs. 5-8) at positions (X_p, Y_p, X_g, Y_g), no trigonometric call
+    (the involute backlash law, bit LAW_INVOLUTE of ``law``, adds two arctangents; :func:`dynamic_backlash_t`).
 
     Returns (dB/dX_p, dB/dY_p, dpsi/dX_p, dpsi/dY_p, B_d, sin psi, cos psi); the derivatives
     with respect to (X_g, Y_g) are their negatives and those with respect to U are zero. With
@@ -243,10 +368,9 @@ def geometry_t(q0, q1, q2, q3, k):
     z = -d2 * iad
     sp = sa * cz + ca * z
     cp = ca * cz - sa * z
-    bd = k[K_BC] + (ad - A0) * ta
     dalpha_dad = ca * iad * cz * inv  # ca / (A_d sa)
     icz = sa * inv
-    db_dad = ta + (ad - A0) * (1.0 + ta * ta) * dalpha_dad
+    bd, db_dad = dynamic_backlash_t(ad, ta, dalpha_dad, k, law)
     d2a = d2 * iad * iad
     return (
         -db_dad * cz,
@@ -285,7 +409,7 @@ def mesh_t(s, ce, se, omega, k, dynamic):
         dp0 = 0.0
         dp1 = 0.0
     else:
-        db0, db1, dp0, dp1, bd, sp, cp = geometry_t(s[0], s[1], s[2], s[3], k)
+        db0, db1, dp0, dp1, bd, sp, cp = geometry_t(s[0], s[1], s[2], s[3], k, dynamic)
     delta, ddelta = deflection_t(s, sp, cp, dp0, dp1, ce, se, omega, k, dynamic)
     f, region = backlash(delta, bd)
     return delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1
@@ -376,6 +500,27 @@ def force_direction_t(sp, cp, fr, k):
 
 
 @kernel_inline
+def mesh_direction_t(sp, cp, fr, k, dynamic, region, db0, db1, dp0, dp1, dx, dy):
+    """w of the equations of motion for the kernels' model code ``dynamic``: :func:`force_direction_t`
+    (eq. 10: along the line of action, psi frozen), unless the code has the bit FORCE_GRADIENT
+    (``GearParams.mesh_force_direction = "gradient"``, ROSS's force): then the mesh force acts along
+    the gradient of Delta - region B_d, so w also has d(Delta)/dpsi dpsi/dq = (dx cos psi + dy sin psi)
+    dpsi/dq and -region dB_d/dq on (X_p, Y_p), their negatives on (X_g, Y_g) (dx, dy = X_p - X_g,
+    Y_p - Y_g; dB_d/dq, dpsi/dq from :func:`geometry_t`; region 0, the teeth apart, keeps the psi term
+    for the damping force). With the gradient the mesh force derives from the potential
+    k f(Delta - region B_d)^2 / 2, as in ROSS's ``multi_rotor/mesh.py``."""
+    w0, w1, w2, w3 = force_direction_t(sp, cp, fr, k)
+    if not dynamic & FORCE_GRADIENT:
+        return w0, w1, w2, w3
+    P = dx * cp + dy * sp
+    g0 = P * dp0 - region * db0
+    g1 = P * dp1 - region * db1
+    iep = k[K_IEP]
+    ieg = k[K_IEG]
+    return w0 + g0 * iep, w1 + g1 * iep, w2 - g0 * ieg, w3 - g1 * ieg
+
+
+@kernel_inline
 def force_direction_dpsi_t(sp, cp, fr, k):
     """dw/dpsi: derivative of :func:`force_direction_t` with respect to the meshing angle psi
     (friction factor fr held fixed)."""
@@ -430,7 +575,7 @@ def geometry(q, c, dynamic, out):
         out[12] = c[C_SIN_A0]
         out[13] = c[C_COS_A0]
         return
-    db0, db1, dp0, dp1, bd, sp, cp = geometry_t(q[0], q[1], q[2], q[3], step_consts(c))
+    db0, db1, dp0, dp1, bd, sp, cp = geometry_t(q[0], q[1], q[2], q[3], step_consts(c), dynamic)
     out[0] = math.atan2(sp, cp)
     out[1] = bd
     out[2] = db0
@@ -462,13 +607,17 @@ def mesh_state(q, v, ce, se, omega, c, dynamic, geo):
 def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
     """Accelerations a = q'' (natural time) at one instant; returns the mesh force Fhat.
 
-    ``kk`` = 1 + kappa cos(phi + phi_k) is the stiffness factor; psi is left in geo[0].
+    ``kk`` = 1 + kappa cos(phi + phi_k) is the stiffness factor; psi is left in geo[0]. The U row's
+    load is the mean F_s (a fluctuating torque's phase is not an argument here: the drivers apply it,
+    :func:`step_consts_at`).
     """
     k = step_consts(c)
     delta, ddelta, bd, f, region = mesh_state(q, v, ce, se, omega, c, dynamic, geo)
     F = force_t(ddelta, f, kk, k)
     fr = friction_t(ce, se, k)  # [friction extension] 0 unless GearParams.friction > 0
-    w = force_direction_t(geo[12], geo[13], fr, k)
+    w = mesh_direction_t(
+        geo[12], geo[13], fr, k, dynamic, region, geo[2], geo[3], geo[7], geo[8], q[0] - q[2], q[1] - q[3]
+    )
     s = (q[0], q[1], q[2], q[3], q[4], v[0], v[1], v[2], v[3], v[4])
     r = eom_residual_t((0.0, 0.0, 0.0, 0.0, 0.0), s, F, w, k)  # a = -r(0, q, v)
     for i in range(5):
@@ -478,15 +627,17 @@ def accel(q, v, ce, se, omega, kk, c, dynamic, geo, a):
 
 @kernel
 def static_equilibrium(c, dynamic, phi0, out):
-    """Drive-side static equilibrium with kappa = 0 and the TE frozen at phase phi0 (A10).
+    """Drive-side static equilibrium with kappa = 0 and the TE (and a fluctuating torque) frozen at
+    phase phi0 (A10).
 
     Writes positions and zero velocities into ``out`` (10). Solves the equations of motion at
     rest, r(0, q, 0) = 0 (:func:`eom_residual_t`): its U row gives F = F_s; for that force the
     bearing rows are linear in the bearing positions (q_i = -r_i(q = 0) / K_i), and U closes
     Delta = B_d + F_s (:func:`backlash_inverse`). The dynamic model's geometry depends on the
-    positions, so the solve repeats until psi and B_d no longer change.
+    positions, so the solve repeats until psi and B_d no longer change (with the gradient force,
+    :func:`mesh_direction_t`, the force direction follows the last iterate's geometry).
     """
-    k = step_consts(c)
+    k = step_consts_at(step_consts(c), phi0, c, torque_fluctuates_t(c))  # the torques frozen at phi0 too
     ce, se, _kk = excitation(phi0, c)
     fr = friction_t(ce, se, k)
     Fs = k[K_FS]
@@ -495,15 +646,17 @@ def static_equilibrium(c, dynamic, phi0, out):
     sp = k[K_SIN_A0]
     cp = k[K_COS_A0]
     bd = k[K_BC]
+    db0 = db1 = dp0 = dp1 = 0.0
     s = rest
     for _it in range(100):
-        r = eom_residual_t(rest, rest, Fs, force_direction_t(sp, cp, fr, k), k)
+        w = mesh_direction_t(sp, cp, fr, k, dynamic, 1, db0, db1, dp0, dp1, s[0] - s[2], s[1] - s[3])
+        r = eom_residual_t(rest, rest, Fs, w, k)
         s = (-r[0] / k_p, -r[1] / k_p, -r[2] / k_g, -r[3] / k_g, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         delta0, _dd = deflection_t(s, sp, cp, 0.0, 0.0, ce, se, 0.0, k, 0)  # Delta with U = 0
         s = (s[0], s[1], s[2], s[3], backlash_inverse(Fs, bd) - delta0, 0.0, 0.0, 0.0, 0.0, 0.0)
         if dynamic == 0:
             break
-        _db0, _db1, _dp0, _dp1, bd1, sp1, cp1 = geometry_t(s[0], s[1], s[2], s[3], k)
+        db0, db1, dp0, dp1, bd1, sp1, cp1 = geometry_t(s[0], s[1], s[2], s[3], k, dynamic)
         if abs(sp1 - sp) < 1e-15 and abs(cp1 - cp) < 1e-15 and abs(bd1 - bd) < 1e-15:
             break
         sp = sp1

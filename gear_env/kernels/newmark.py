@@ -40,14 +40,16 @@ from .mesh import (
     deflection_t,
     eom_residual_t,
     excitation,
-    force_direction_t,
     force_gradient_t,
     force_t,
     friction_t,
     geometry_taylor_t,
+    mesh_direction_t,
     mesh_t,
     psi_t,
     step_consts,
+    step_consts_at,
+    torque_fluctuates_t,
 )
 
 
@@ -100,7 +102,7 @@ def rank_one_solve_t(r0, r1, r2, r3, r4, w0, w1, w2, w3, u0, u1, u2, u3, u4, idd
 
 
 @kernel_inline
-def newton_delta_t(a, t, mesh, ce, se, kk, hc, k, friction=True):
+def newton_delta_t(a, t, mesh, ce, se, kk, hc, k, dynamic, friction=True):
     """The Newton update of a step's end-of-step acceleration: the residual r of the equations of
     motion at the corrected state t (acceleration iterate a, ``mesh`` = :func:`mesh_t` at t, whose
     backlash value f and region are used as given) and d = -(dr/da)^-1 r. Returns (d_0..d_4, F)."""
@@ -108,7 +110,7 @@ def newton_delta_t(a, t, mesh, ce, se, kk, hc, k, friction=True):
     delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
     F = force_t(ddelta, f, kk, k)
     fr = friction_t(ce, se, k) if friction else 0.0  # [friction extension] tilts the force off the LOA
-    w = force_direction_t(sp, cp, fr, k)
+    w = mesh_direction_t(sp, cp, fr, k, dynamic, region, db0, db1, dp0, dp1, t[0] - t[2], t[1] - t[3])
     w0, w1, w2, w3 = w
     # the residual of the equations of motion at the corrected state t (kernels.mesh)
     r0, r1, r2, r3, r4 = eom_residual_t(a, t, F, w, k)
@@ -170,7 +172,7 @@ def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_o
     h, bh2, gh, hh, h1, idd0, idd2 = hc
     a0, a1, a2, a3, a4 = a
     delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
-    e0, e1, e2, e3, e4, F = newton_delta_t(a, t, mesh, ce, se, kk, hc, k, friction)
+    e0, e1, e2, e3, e4, F = newton_delta_t(a, t, mesh, ce, se, kk, hc, k, dynamic, friction)
     a0 += e0
     a1 += e1
     a2 += e2
@@ -254,7 +256,7 @@ def newmark_branch_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol, r
     mesh = mesh_branch_t(t, ce, se, w_b, k, dynamic, region)
     a0, a1, a2, a3, a4 = g[0], g[1], g[2], g[3], g[4]
     for _it in range(max_iter):
-        e0, e1, e2, e3, e4, F = newton_delta_t((a0, a1, a2, a3, a4), t, mesh, ce, se, kk, hc, k)
+        e0, e1, e2, e3, e4, F = newton_delta_t((a0, a1, a2, a3, a4), t, mesh, ce, se, kk, hc, k, dynamic)
         a0 += e0
         a1 += e1
         a2 += e2
@@ -384,6 +386,7 @@ def split_step_t(s, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol):
     bd = 0.0
     sp = 0.0
     cp = 0.0
+    tq = torque_fluctuates_t(c)
     for level in range(1, MAX_SPLIT_LEVEL + 1):
         nsub = 1 << level
         ss = s
@@ -396,8 +399,9 @@ def split_step_t(s, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol):
             hc = step_coeffs(2.0 * sub / (wprev + wk), k)
             cek, sek, kkk = excitation(phi_a + sub * (j + 1.0), c)
             ga = (ss[10], ss[11], ss[12], ss[13], ss[14])
+            kq = step_consts_at(k, phi_a + sub * (j + 1.0), c, tq)  # k itself unless the torque fluctuates
             ok, ss, F, region, delta, bd, sp, cp = newmark_try_t(
-                ss, ga, cek, sek, kkk, wk, hc, k, dynamic, max_iter, tol
+                ss, ga, cek, sek, kkk, wk, hc, kq, dynamic, max_iter, tol
             )
             if not ok:
                 good = False
