@@ -1,6 +1,6 @@
 """The case list of ``benchmarks/hostile_probe`` (issue 25's second probe) is well formed; no case is run here.
 
-The probe itself (271 subprocesses, about two hours of one core) is run by hand:
+The probe itself (271 subprocesses, about half an hour) is run by hand:
 ``python -m benchmarks.hostile_probe`` from the repository root.
 """
 

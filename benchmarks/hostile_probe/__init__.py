@@ -17,5 +17,5 @@ untouched; no pickle/YAML payload ran, which would create a marker in the workin
 
 The cases are written from the issue's text, independently of ``benchmarks/crafted_cases.py`` (CI's
 slow stage); ``tests/test_hostile_probe.py`` checks the case list only (no subprocess). The full run
-takes about 1 h 50 min of one core.
+takes about 20-30 min (the cases about 16 min, plus a numba compile and two small base runs).
 """
