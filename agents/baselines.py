@@ -302,7 +302,7 @@ class HillClimber(ScriptedPolicy):
         up = np.minimum(omega + self.climb * self.max_domega, ceiling - self.margin)
         hold_or_up = np.maximum(up, np.minimum(omega, ceiling - self.margin))
         if self.has_demand:  # no faster than the demand; down to it at once
-            d = self.omega_min + 0.5 * (obs[:, OBS_DEMAND] + 1.0) * (self.omega_max - self.omega_min)
+            d = _obs_demand(self, obs)
             hold_or_up = np.minimum(hold_or_up, d)
         target = np.where(ok, hold_or_up, omega - self.max_domega)
         return target, state

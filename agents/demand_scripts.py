@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .baselines import OBS_BACK_IMPACTS, OBS_CONTACT, OBS_DEFECT, OBS_DEMAND, OBS_DRIVE_IMPACTS, ScriptedPolicy
+from .baselines import OBS_BACK_IMPACTS, OBS_CONTACT, OBS_DEFECT, OBS_DRIVE_IMPACTS, ScriptedPolicy, _obs_demand
 
 OBS_DOMEGA = 1  # change of omega in the step / max_domega
 OBS_FORCE_RMS = 2  # log1p(RMS of the dynamic mesh force / F_s)
@@ -81,7 +81,7 @@ def force_shape(config: Any = None, e_m1: float = 0.25, load: float = 1.5, steps
 
 
 def _demand(policy: ScriptedPolicy, obs: np.ndarray) -> np.ndarray:
-    return policy.omega_min + 0.5 * (obs[:, OBS_DEMAND] + 1.0) * (policy.omega_max - policy.omega_min)
+    return _obs_demand(policy, obs)
 
 
 def _trouble(obs: np.ndarray, margin: float = 0.0) -> np.ndarray:

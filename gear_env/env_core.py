@@ -458,7 +458,8 @@ class GearSpeedCore:
     def decode(self, rows: np.ndarray, actions: np.ndarray) -> np.ndarray:
         """Omega at the end of the next step for actions in [-1, 1] (rate-limited, clipped)."""
         out = np.empty(len(rows))
-        demand = self._zeros[: len(rows)] if self.config.demand is None else self.demand(self.steps[rows], rows)
+        limit = self.config.action_mode == "limit"  # only the limit mode reads the demand of the step
+        demand = self.demand(self.steps[rows], rows) if limit else self._zeros[: len(rows)]
         EK.decode_actions(self.omega[rows], actions, demand, self.S, ET.ACTION_CODES[self.config.action_mode], out)
         return out
 
