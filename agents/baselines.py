@@ -1,9 +1,9 @@
 """Scripted speed policies for the GearSpeed tasks with the SB3 ``predict`` interface.
 
 Every policy here reads only the observation (omega is observation[0], scaled linearly from
-[omega_min, omega_max] to [-1, 1]; the vibration features follow ``gear_env.env_core.SENSOR_NAMES``)
+[omega_min, omega_max] to [-1, 1]; the vibration features follow ``gear_env.envs.env_core.SENSOR_NAMES``)
 and returns actions for either action mode of the environment, so PPO models, these baselines,
-the oracle and the schedules of ``gear_env.schedules`` are all evaluated by the same code
+the oracle and the schedules of ``gear_env.envs.schedules`` are all evaluated by the same code
 (``gear_env.evaluation.evaluate_policies``).
 
 **Which task.** What an action means depends on the task (a change of omega on GearSpeed-v0, a filtered
@@ -75,9 +75,9 @@ class ScriptedPolicy(BasePolicy):
 
         Built without ``config=``: returns ``self`` if ``config`` is the default task's configuration, else
         the policy rebuilt with the same arguments and ``config=config``. Built with ``config=``: returns
-        ``self`` if ``config`` gives actions the same meaning (``gear_env.schedules.ACTION_FIELDS`` and the
+        ``self`` if ``config`` gives actions the same meaning (``gear_env.envs.schedules.ACTION_FIELDS`` and the
         actuator dead time), else raises ``ValueError`` naming the settings that differ."""
-        from gear_env.schedules import ACTION_FIELDS
+        from gear_env.envs.schedules import ACTION_FIELDS
 
         from .envs import GEAR_ENV_ID, make_config
 
@@ -153,11 +153,11 @@ class ScriptedPolicy(BasePolicy):
 
     def omega_after(self, omega: np.ndarray, actions: np.ndarray, demand: np.ndarray | None = None) -> np.ndarray:
         """Omega (n,) after the actions (n, k) drive k steps from ``omega``, decoded by the environment's own
-        kernel (``gear_env.env_kernels.decode_actions``: delta, target or limit mode, reference filter, rate
+        kernel (``gear_env.envs.env_kernels.decode_actions``: delta, target or limit mode, reference filter, rate
         limit). ``demand`` (n,): the demand those steps follow in limit mode (taken as constant over them)."""
         if self._decoder is None:
-            from gear_env.env_kernels import decode_actions
-            from gear_env.env_terms import ACTION_CODES
+            from gear_env.envs.env_kernels import decode_actions
+            from gear_env.envs.env_terms import ACTION_CODES
 
             from .envs import GEAR_ENV_ID, make_config
 

@@ -59,7 +59,7 @@ TROUBLE_DEFECT = float(np.log1p(0.5))
 def force_shape(config: Any = None, e_m1: float = 0.25, load: float = 1.5, steps: int = 4) -> np.ndarray:
     """log h at ``H_OMEGAS``: log(expm1(force_rms) / q) after holding each omega ``steps`` steps on the pair
     (e_m1 x``e_m1``, load x``load``) of the task's family, no duty cycle (what ``LOG_H`` stores)."""
-    from gear_env.env import GearSpeedEnv
+    from gear_env.envs.env import GearSpeedEnv
 
     from .envs import GEAR_ENV_ID, make_config
 
@@ -87,7 +87,7 @@ def _demand(policy: ScriptedPolicy, obs: np.ndarray) -> np.ndarray:
 def _trouble(obs: np.ndarray, margin: float = 0.0) -> np.ndarray:
     """Troubled steps: contact loss, an impact or a periodicity defect; ``margin`` raises the thresholds of the
     continuous sensors (for noisy ones; impacts are counted events, exact)."""
-    from gear_env.env_terms import TROUBLE_CONTACT
+    from gear_env.envs.env_terms import TROUBLE_CONTACT
 
     impacts = obs[:, OBS_DRIVE_IMPACTS] + obs[:, OBS_BACK_IMPACTS]
     contact = obs[:, OBS_CONTACT] > TROUBLE_CONTACT + margin

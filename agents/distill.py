@@ -80,7 +80,7 @@ def distill(
     ``on_iteration(i, steps)`` runs after each iteration (the training run evaluates and saves there)."""
     import torch
 
-    from gear_env.env import GearSpeedEnv
+    from gear_env.envs.env import GearSpeedEnv
 
     from .envs import make_config
 

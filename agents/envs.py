@@ -1,8 +1,8 @@
 """Environment construction for training and evaluation: configs to/from JSON, vector envs for SB3.
 
-The environments are the GearSpeed tasks (``gear_env.env.GearSpeedEnv`` with the task's frozen
+The environments are the GearSpeed tasks (``gear_env.envs.env.GearSpeedEnv`` with the task's frozen
 ``GearSpeedConfig``; :data:`GEAR_ENV_ID`, GearSpeed-v1, where no task is given); their native vector
-form ``gear_env.vector_env.GearSpeedVectorEnv`` steps every sub-environment in one numba call and is
+form ``gear_env.envs.vector_env.GearSpeedVectorEnv`` steps every sub-environment in one numba call and is
 presented to stable-baselines3 through the adapter in that module. Any other Gymnasium id (e.g.
 ``Pendulum-v1``) is accepted as a stand-in so the training plumbing can be tested without the gear
 model; it is wrapped in SB3's ``DummyVecEnv``.
@@ -23,14 +23,14 @@ GEAR_ENV_ID = "GearSpeed-v1"
 """The task where none is given (``config=None`` of a policy or an oracle, ``TrainOptions.env_id``); the
 CLI's default too (``gear_env.cli.common.DEFAULT_ENV``)."""
 GEAR_ENV_IDS = ("GearSpeed-v0", "GearSpeed-v1", "GearSpeedDemand-v0", "GearSpeedDemandHard-v0")
-"""The registered gear tasks (``gear_env.tasks.TASK_SETTINGS``): one config class, different settings."""
+"""The registered gear tasks (``gear_env.envs.tasks.TASK_SETTINGS``): one config class, different settings."""
 
 
 # --------------------------------------------------------------------------------------------------
 # configuration
 # --------------------------------------------------------------------------------------------------
 def _config_class() -> Any:
-    from gear_env.env import GearSpeedConfig
+    from gear_env.envs.env import GearSpeedConfig
 
     return GearSpeedConfig
 
@@ -73,7 +73,7 @@ def make_config(env_id: str, cfg: Any = None) -> Any:
     if env_id not in GEAR_ENV_IDS:
         return dict(cfg or {})
     cls = _config_class()
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
 
     if cfg is None:
         return task_config(env_id)
@@ -111,7 +111,7 @@ def make_env(env_id: str, cfg: Any = None, **kwargs: Any) -> Any:
     import gear_env  # noqa: F401  (registers GearSpeed-v0)
 
     if env_id in GEAR_ENV_IDS:
-        from gear_env.env import GearSpeedEnv
+        from gear_env.envs.env import GearSpeedEnv
 
         return GearSpeedEnv(make_config(env_id, cfg), **kwargs)
     return gym.make(env_id, **dict(cfg or {}), **kwargs)
@@ -136,7 +136,7 @@ def make_sb3_vec_env(env_id: str, cfg: Any, num_envs: int, seed: int | None) -> 
 
 
 def _gear_sb3_vec_env(config: Any, num_envs: int) -> Any:
-    from gear_env.sb3_adapter import SB3VecEnvAdapter
+    from gear_env.envs.sb3_adapter import SB3VecEnvAdapter
 
     return SB3VecEnvAdapter(num_envs=num_envs, config=config)
 
@@ -151,7 +151,7 @@ def control_parameters(cfg: Any) -> dict[str, Any]:
     set-point error closed per step before the rate limit), ``max_steps`` (episode length) and ``action_delay``
     (actuator dead time in steps: an action drives the step ``action_delay`` steps later) and
     ``sensor_noise`` (std of the noise on the continuous sensor features)."""
-    from gear_env.env_terms import action_bounds
+    from gear_env.envs.env_terms import action_bounds
 
     c = make_config(GEAR_ENV_ID, cfg)
     lo, hi = action_bounds(c)

@@ -53,7 +53,7 @@ def cost_map(cfg: Any, params: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def worn(factors: dict[str, float], wear: float) -> dict[str, float]:
-    """Family factors with the transmission error times ``wear`` (a :class:`gear_env.tasks.WearChange`)."""
+    """Family factors with the transmission error times ``wear`` (a :class:`gear_env.envs.tasks.WearChange`)."""
     return {**factors, "e_m1": factors["e_m1"] * wear}
 
 
@@ -97,7 +97,7 @@ class EpisodePlanner:
         c = self.cfg
         if c.action_mode != "limit" or self.demand is None:
             return nxt
-        from gear_env.env_terms import action_bounds
+        from gear_env.envs.env_terms import action_bounds
 
         lo, hi = action_bounds(c)
         d = self.demand[min(t, len(self.demand) - 1)]

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from gear_env.steady_map import undisturbed_config
+from gear_env.envs.steady_map import undisturbed_config
 
 from .baselines import ScriptedPolicy
 from .envs import GEAR_ENV_ID, config_to_dict, make_config
@@ -230,7 +230,7 @@ def _stable_window_containing(cfg: Any, omega: float) -> tuple[float, float] | N
     """The stable interval of the shipped/cached stability map that contains ``omega``, if any."""
     try:
         from gear_env.analysis.stability import default_stability_map
-        from gear_env.params import GearParams
+        from gear_env.sim.params import GearParams
 
         if cfg.params != GearParams():  # the shipped map is for the default parameters only
             return None

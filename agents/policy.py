@@ -5,7 +5,7 @@ Every policy here (scripted baselines, the oracle, random actions, trained PPO m
 and the base class supplies SB3's ``predict(observation, state, episode_start, deterministic)``
 for one observation or a batch. Code that only *uses* policies (the evaluation, the rollout
 helper, ``gear-env evaluate``) depends on the :class:`Policy` protocol, which SB3 models and
-:class:`gear_env.schedules.SpeedSchedule` satisfy too.
+:class:`gear_env.envs.schedules.SpeedSchedule` satisfy too.
 """
 
 from __future__ import annotations

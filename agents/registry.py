@@ -253,7 +253,7 @@ def resolve_policy(spec: str, config: Any = None, env_id: str | None = None, all
         if pol.env_id != env_id:
             raise ValueError(f"{str(d / 'policy.json')!r}: env_id: the policy is for {pol.env_id!r}, not {env_id!r}")
         if config is not None:
-            from gear_env.env import GearSpeedEnv
+            from gear_env.envs.env import GearSpeedEnv
 
             n_obs = GearSpeedEnv(config).observation_space.shape[0]
             if n_obs != pol.observation_space.shape[0]:

@@ -77,7 +77,7 @@ def stable_window(config: Any) -> list[tuple[float, float]]:
     from .envs import GEAR_ENV_ID, make_config
 
     cfg = make_config(GEAR_ENV_ID, config)
-    from gear_env.params import GearParams
+    from gear_env.sim.params import GearParams
 
     smap = default_stability_map(cfg.model) if cfg.params == GearParams() else stability_map(cfg.model, cfg.params)
     return [(float(a), float(b)) for a, b in smap.stable_intervals()]
@@ -87,7 +87,7 @@ def compare(
     policies: Mapping[str, Any], config: Any = None, episodes: int = 20, seed: int = 0, oracle: str = "oracle"
 ) -> dict[str, Any]:
     """Roll out every policy on the same seeds and summarise against the targets."""
-    from gear_env.env import GearSpeedEnv
+    from gear_env.envs.env import GearSpeedEnv
 
     from .envs import GEAR_ENV_ID, config_to_dict, make_config
 

@@ -161,7 +161,7 @@ def _check_config(data: Mapping[str, Any], path: str) -> None:
     """Types and ranges of a config.json (known keys only); RunFolderError naming the field."""
     try:
         check_keys(data, CONFIG_KEYS, path, "")
-        from gear_env.tasks import TASK_SETTINGS
+        from gear_env.envs.tasks import TASK_SETTINGS
 
         want_str(data["env_id"], path, "env_id", max_len=64, choices=tuple(TASK_SETTINGS))
         check_keys(data["env_config"], data["env_config"].keys() if isinstance(data["env_config"], dict) else (),

@@ -5,7 +5,7 @@
     print(report.to_markdown())          # return, % of the oracle, cost, throughput, chaos, ...
 
 The model is any object with stable-baselines3's ``predict`` (an SB3 model, a loaded policy, a
-:class:`gear_env.schedules.SpeedSchedule`). The episodes are those of ``gear-env evaluate --env ENV_ID
+:class:`gear_env.envs.schedules.SpeedSchedule`). The episodes are those of ``gear-env evaluate --env ENV_ID
 --episodes N --seed S``: episode k uses seed ``seed + k`` for every policy, so the numbers compare with the
 tables of docs/RESULTS.md (which use seeds 9001-9020, never used in training).
 """
@@ -56,15 +56,15 @@ def compare(
             statistics are applied before ``predict``); None if it was trained on raw observations.
 
     Returns:
-        :class:`gear_env.report.EvaluationReport` (``to_markdown()``, ``to_json_dict()``, ``plot()``,
+        :class:`gear_env.evaluation.report.EvaluationReport` (``to_markdown()``, ``to_json_dict()``, ``plot()``,
         ``percent_of_reference(name)``).
 
     Raises:
         ValueError: unknown task or baseline, a name used twice, or a model whose observation or action
             space does not fit the task (before any episode runs).
     """
-    from gear_env.env import GearSpeedEnv
-    from gear_env.env_config import task_config
+    from gear_env.envs.env import GearSpeedEnv
+    from gear_env.envs.env_config import task_config
     from gear_env.evaluation import evaluate_policies
 
     from .registry import resolve_policy

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from gear_env.env_terms import action_bounds
+from gear_env.envs.env_terms import action_bounds
 from gear_env.io import parse_json_text
 
 from .baselines import OBS_DEMAND

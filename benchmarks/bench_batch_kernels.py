@@ -18,8 +18,8 @@ import numpy as np
 
 def _run(lanes: bool, core, w0: np.ndarray, w1: np.ndarray, P: int, N: int):
     """One control step of every system from the core's state; (seconds, outputs)."""
-    from gear_env import batch_kernels as BK
-    from gear_env import kernels as K
+    from gear_env.sim import batch_kernels as BK
+    from gear_env.sim import kernels as K
 
     n = core.X.shape[0]
     X, A = core.X.copy(), core.A.copy()
@@ -41,8 +41,8 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=7, help="timings per kernel (best is printed)")
     args = ap.parse_args()
 
-    from gear_env.env_config import GearSpeedConfig
-    from gear_env.env_core import GearSpeedCore
+    from gear_env.envs.env_config import GearSpeedConfig
+    from gear_env.envs.env_core import GearSpeedCore
 
     for n in args.systems:
         for model in ("dynamic", "constant"):

@@ -42,7 +42,7 @@ def _timed(step_fn, seconds: float) -> tuple[int, float]:
 
 def bench_single(seconds: float, **cfg) -> float:
     """Env steps per second of one GearSpeedEnv (random actions, auto-reset)."""
-    from gear_env.env import GearSpeedEnv
+    from gear_env.envs.env import GearSpeedEnv
 
     env = GearSpeedEnv(**cfg)
     env.reset(seed=0)
@@ -64,7 +64,7 @@ def bench_single(seconds: float, **cfg) -> float:
 
 def bench_vector(num_envs: int, seconds: float, **cfg) -> float:
     """Environment steps per second (num_envs x vector steps) of GearSpeedVectorEnv."""
-    from gear_env.vector_env import GearSpeedVectorEnv
+    from gear_env.envs.vector_env import GearSpeedVectorEnv
 
     venv = GearSpeedVectorEnv(num_envs, **cfg)
     venv.reset(seed=0)
@@ -87,10 +87,10 @@ def bench_kernel(num_envs: int, seconds: float, lanes: bool, ramp: float = 0.0) 
     (``batch_kernels.integrate_stats_lanes``, what the vector env uses) or the scalar batch kernel
     (``kernels.integrate_stats_batch``, one system after the other); omega ramps by ``ramp`` per
     step (alternating up and down) or stays constant."""
-    from gear_env import batch_kernels as BK
-    from gear_env import kernels as K
-    from gear_env.env_config import GearSpeedConfig
-    from gear_env.env_core import GearSpeedCore
+    from gear_env.envs.env_config import GearSpeedConfig
+    from gear_env.envs.env_core import GearSpeedCore
+    from gear_env.sim import batch_kernels as BK
+    from gear_env.sim import kernels as K
 
     cfg = GearSpeedConfig()
     core = GearSpeedCore(cfg, num_envs)

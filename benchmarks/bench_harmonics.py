@@ -25,8 +25,8 @@ import time
 import numpy as np
 
 from gear_env import GearParams, GearSimulator
-from gear_env.geometry import SpurPair
-from gear_env.vector_env import GearSpeedVectorEnv
+from gear_env.envs.vector_env import GearSpeedVectorEnv
+from gear_env.sim.geometry import SpurPair
 
 PAIR = SpurPair(module=2e-3, teeth=(55, 75), face_width=0.03785, bore=(0.04, 0.05))
 TABLE1 = dict(J_p=0.041, J_g=0.079, m_p=1.53, m_g=3.01)

@@ -6,7 +6,7 @@ Prints:
 2. simulated mesh periods per second for both backlash models at the default steps per period;
 3. the speed-up over SciPy ``solve_ivp`` (DOP853) at equal accuracy on the same work: same omega,
    same start state, same number of mesh periods. The Newmark error at the default step count is
-   measured against a fine reference (gear_env.reference, rtol 1e-12 with event location); then
+   measured against a fine reference (gear_env.sim.reference, rtol 1e-12 with event location); then
    the loosest DOP853 tolerance whose error is no larger is searched (``rtol`` in half decades, both
    straight through the contact kinks and with event location), and both are timed back to back
    (median of 3 paired ratios, robust to the VM's speed drift);
@@ -135,7 +135,7 @@ def paired_ratio(fast, slow, rounds: int = 3) -> tuple[float, float, float]:
 def ratio_vs_solve_ivp(model: str, omega: float, periods: int, n_steps: int) -> dict:
     """Equal-accuracy comparison on one piece of work; returns the measured numbers."""
     from gear_env import GearParams, GearSimulator
-    from gear_env.reference import reference_poincare
+    from gear_env.sim.reference import reference_poincare
 
     p = GearParams()
     sim = GearSimulator(p, model, 512, omega)
@@ -183,7 +183,7 @@ def ratio_at_bound(model: str, omega: float, periods: int, eps: float = 1e-3) ->
     half decades from 1e-1, error steps of ~3x) whose Poincare error is <= ``eps`` b0, and their
     paired ratio. None if no N reaches it."""
     from gear_env import GearParams, GearSimulator
-    from gear_env.reference import reference_poincare
+    from gear_env.sim.reference import reference_poincare
 
     p = GearParams()
     sim = GearSimulator(p, model, 512, omega)
@@ -233,7 +233,7 @@ def ratio_batch(model: str, omegas, periods: int, n_steps: int) -> dict:
     the loosest rtol (half decades) whose error is no larger than Newmark's at that omega. Returns
     the paired ratios (sum of the DOP853 times over the Newmark time)."""
     from gear_env import GearParams, GearSimulator, simulate_batch
-    from gear_env.reference import reference_poincare
+    from gear_env.sim.reference import reference_poincare
 
     p = GearParams()
     starts, fines = [], []
@@ -292,7 +292,7 @@ def work_precision(model: str, omega: float, periods: int, fine_steps: int = 512
     table; ratios are re-timed in pairs by :func:`paired_ratio`).
     """
     from gear_env import GearParams, GearSimulator
-    from gear_env.reference import reference_poincare
+    from gear_env.sim.reference import reference_poincare
 
     p = GearParams()
     sim = GearSimulator(p, model, fine_steps, omega)

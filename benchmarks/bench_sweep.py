@@ -126,7 +126,7 @@ def _proc_cpu(pid: int) -> float:
 def lyapunov_study() -> int:
     """Finite-time Lyapunov estimates over 200, 1000, 4000 mesh periods after 500 on the attractor."""
     from gear_env.analysis import largest_lyapunov
-    from gear_env.simulator import GearSimulator
+    from gear_env.sim.simulator import GearSimulator
 
     print("model     omega   lam(200)  lam(1000) lam(4000)  [per unit natural time]")
     for model, w in [("constant", 0.526), ("constant", 0.469), ("constant", 1.71), ("constant", 2.274),
@@ -141,7 +141,7 @@ def lyapunov_study() -> int:
 
 def steps_study() -> int:
     """Amplitudes at low omega against the Newmark steps per mesh period (dynamic model)."""
-    from gear_env.simulator import GearSimulator
+    from gear_env.sim.simulator import GearSimulator
 
     print("omega  steps  amp_U      amp_Delta  amp_force  contact_loss")
     for w in (0.05, 0.1, 0.2, 0.3, 0.5):

@@ -21,7 +21,7 @@ def bench_task(env_id: str, seconds: float, vector: int = 0) -> float:
     """Env steps per CPU second of ``env_id`` (``vector`` sub-envs in the vector env, 0: single env)."""
     from bench_env import bench_single, bench_vector  # benchmarks/ is the script's folder
 
-    from gear_env.tasks import TASK_SETTINGS
+    from gear_env.envs.tasks import TASK_SETTINGS
 
     settings = TASK_SETTINGS[env_id]
     return bench_vector(vector, seconds, **settings) if vector else bench_single(seconds, **settings)
@@ -37,8 +37,8 @@ def main() -> int:
 
     check_json_target(args.json)
     rec = Record("bench_tasks")
-    from gear_env.env_config import task_config
-    from gear_env.tasks import TASK_SETTINGS
+    from gear_env.envs.env_config import task_config
+    from gear_env.envs.tasks import TASK_SETTINGS
 
     print(f"{platform.processor() or platform.machine()}, load average {os.getloadavg()}")
     rates: dict[tuple[str, int], list[float]] = {}

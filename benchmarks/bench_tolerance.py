@@ -4,7 +4,7 @@ the period-1 orbits and mesh periods per second, as ratios taken in one interlea
 Accuracy: for period-1 attractors on an omega grid (both models; from a common state on the
 attractor, Newmark 512 steps x 300 periods from A10; orbits whose reference Poincare points repeat
 within 1e-5 (1 + max|x|)), the largest error over 10 Poincare points and the 10 states against
-``gear_env.reference`` (DOP853, rtol 1e-11, events). Speed: ``advance(periods)`` from the same
+``gear_env.sim.reference`` (DOP853, rtol 1e-11, events). Speed: ``advance(periods)`` from the same
 states, fixed 192 steps and each tol alternately, ``--repeats`` rounds; the ratio is the
 summed time of fixed 192 over the summed time of the tol mode (> 1: tol mode faster).
 
@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 from gear_env import GearParams, GearSimulator
-from gear_env.reference import reference_poincare
+from gear_env.sim.reference import reference_poincare
 
 
 def main(argv: list[str] | None = None) -> int:

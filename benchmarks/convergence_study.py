@@ -2,7 +2,7 @@
 
 For each meshing frequency omega and backlash model: a state on the attractor is obtained first
 (Newmark, 512 steps per period, 300 mesh periods from MODEL.md A10); from that common state both
-the Newmark simulator (N steps per mesh period) and ``gear_env.reference`` (DOP853, rtol 1e-11,
+the Newmark simulator (N steps per mesh period) and ``gear_env.sim.reference`` (DOP853, rtol 1e-11,
 contact changes located by events) integrate ``--periods`` mesh periods. The error is the maximum
 over those Poincare points of |state_newmark - state_reference| over all 10 states (b0 units;
 velocities per unit natural time), and separately of Delta. The observed order is the least-squares slope of log(error)
@@ -22,8 +22,8 @@ import time
 import numpy as np
 
 from gear_env import GearParams, GearSimulator, default_steps_per_period
-from gear_env.kernels import PC_DELTA
-from gear_env.reference import reference_poincare
+from gear_env.sim.kernels import PC_DELTA
+from gear_env.sim.reference import reference_poincare
 
 NS = (16, 32, 64, 128, 160, 192, 256, 512)
 DEFAULT_OMEGAS = (0.1, 0.2, 0.25, 0.35, 0.45, 0.8, 1.2, 1.5, 2.0, 2.8, 3.0)

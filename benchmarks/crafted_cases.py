@@ -166,7 +166,7 @@ def sweep_checkpoint(work: Path) -> Path:
     """A valid sweep checkpoint (2 of 3 points done) written by the package."""
     from gear_env.analysis.checkpoint import Checkpoint
     from gear_env.analysis.results import PointResult
-    from gear_env.kernels import N_PC, N_STATS, NSTATE
+    from gear_env.sim.kernels import N_PC, N_STATS, NSTATE
 
     ck = Checkpoint(str(work / "c.ckpt.npz"), FP, GRID)
     for i, (reg, per) in enumerate((("period-1", 1), ("chaotic", 0))):
@@ -185,8 +185,8 @@ def load_checkpoint(path: Path) -> None:
 def results_file(work: Path) -> Path:
     """A valid .nc results file of 3 points written by the package."""
     from gear_env.analysis.results import PointResult, assemble
-    from gear_env.kernels import N_PC, N_STATS, NSTATE
-    from gear_env.params import GearParams
+    from gear_env.sim.kernels import N_PC, N_STATS, NSTATE
+    from gear_env.sim.params import GearParams
 
     pts = [
         PointResult(
@@ -564,7 +564,7 @@ def _c_full_disk_lock_names_file(w: Path) -> Outcome:
 
 def _point():  # type: ignore[no-untyped-def]
     from gear_env.analysis.results import PointResult
-    from gear_env.kernels import N_PC, N_STATS, NSTATE
+    from gear_env.sim.kernels import N_PC, N_STATS, NSTATE
 
     return PointResult(1.0, "period-1", 1, 0.0, np.zeros((4, N_PC)), np.ones(N_STATS), np.zeros(NSTATE), 64, 1, True, 4)
 

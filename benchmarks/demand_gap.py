@@ -49,7 +49,7 @@ def edge_seeker(cfg, floor: float = 1.15, up: float = 0.02, back: float = 0.1, c
     """The sensor-only edge seeker described in the module docstring (``predict`` of the baselines);
     ``contact``: the contact-loss fraction that counts as trouble (default ``env_terms.TROUBLE_CONTACT``,
     the threshold of the environment's memory features)."""
-    from gear_env.env_terms import TROUBLE_CONTACT
+    from gear_env.envs.env_terms import TROUBLE_CONTACT
 
     contact = TROUBLE_CONTACT if contact is None else contact
     from agents.baselines import (
@@ -84,7 +84,7 @@ def edge_seeker(cfg, floor: float = 1.15, up: float = 0.02, back: float = 0.1, c
 def term_sums(policy, cfg, episodes: int, seed: int) -> dict[str, float]:
     """Mean over episodes ``seed``.. of each reward term summed over the episode (the rollout of
     ``gear_env.evaluation.run_episode``, same seeds and calls)."""
-    from gear_env.env import GearSpeedEnv
+    from gear_env.envs.env import GearSpeedEnv
     from gear_env.evaluation import run_episode
 
     env = GearSpeedEnv(cfg)
@@ -144,7 +144,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from agents.registry import resolve_policy
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
     from gear_env.evaluation import evaluate_policies
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -53,7 +53,7 @@ def parse_seed_set(text: str) -> range:
 
 def episode_rows(policy, cfg, seeds: Sequence[int]) -> list[dict]:
     """Per episode: seed, return, delivered (throughput term), shortfall (demand term), cost (the rest)."""
-    from gear_env.env import GearSpeedEnv
+    from gear_env.envs.env import GearSpeedEnv
     from gear_env.evaluation import run_episode
 
     env = GearSpeedEnv(cfg)
@@ -86,8 +86,8 @@ def calibrate(cfg, seeds: Sequence[int], env_id: str = DEMAND_TASKS[0]) -> str:
     higher hold and the 5th of the lower one)."""
     from agents.demand_scripts import OBS_DOMEGA, TROUBLE_DEFECT, log_q
     from agents.registry import resolve_policy
-    from gear_env.env import GearSpeedEnv
-    from gear_env.env_terms import TROUBLE_CONTACT
+    from gear_env.envs.env import GearSpeedEnv
+    from gear_env.envs.env_terms import TROUBLE_CONTACT
 
     env, oracle = GearSpeedEnv(cfg), resolve_policy("oracle", cfg, env_id=env_id)
     span = cfg.omega_max - cfg.omega_min
@@ -250,7 +250,7 @@ def _main(args: argparse.Namespace) -> int:
     env_id = args.env
 
     from agents.protocol import gap_scores, iqm_ci
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
     from gear_env.io import atomic_write_text
 
     if args.calibrate:

@@ -2,7 +2,7 @@
 
 For each pair of ``PAIRS`` (the ROSS test pair, the paper's pair and pairs chosen to span tooth
 counts, modules, pressure angles and bores) it computes the 1000-point waveform
-``linspace(0, one mesh period, 1000)`` with :class:`gear_env.geometry.SpurPair` and with ROSS's
+``linspace(0, one mesh period, 1000)`` with :class:`gear_env.sim.geometry.SpurPair` and with ROSS's
 ``Mesh(GearElementTVMS, GearElementTVMS)``, and prints contact ratio, max / min / mean and the
 time of each, plus their ratio::
 
@@ -26,8 +26,8 @@ import time
 
 import numpy as np
 
-from gear_env.geometry import SpurPair
 from gear_env.io import atomic_write_text
+from gear_env.sim.geometry import SpurPair
 
 # (name, SpurPair keyword arguments); all SI
 PAIRS: list[tuple[str, dict]] = [

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from gear_env import GearSimulator
-from gear_env import kernels as K
+from gear_env.sim import kernels as K
 
 
 @njit(error_model="numpy", inline="always")

@@ -1,6 +1,6 @@
 """Contact changes located inside the Newmark step (``tangent.tangent_map(..., corrected=2)``): the
 sawtooth of the Floquet multipliers, the multipliers at grazing orbits against the event-located
-reference (``gear_env.reference``), and the convergence order on impacting motion.
+reference (``gear_env.sim.reference``), and the convergence order on impacting motion.
 
     python benchmarks/located_crossings.py                  # all three parts (~2-4 min)
     python benchmarks/located_crossings.py --part sawtooth  # or: grazing, order
@@ -18,10 +18,10 @@ import time
 import numpy as np
 
 from gear_env import GearParams, GearSimulator, default_steps_per_period
-from gear_env import kernels as K
 from gear_env.analysis import tangent as TG
-from gear_env.params import model_code
-from gear_env.reference import reference_poincare
+from gear_env.sim import kernels as K
+from gear_env.sim.params import model_code
+from gear_env.sim.reference import reference_poincare
 
 MODES = {0: "exact, unlocated", 1: "crossing-corrected", 2: "located (exact)"}
 

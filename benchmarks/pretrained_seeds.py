@@ -89,7 +89,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return combine(args.combine, args.json, report_iqm)
 
     from agents.registry import resolve_policy
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
     from gear_env.evaluation import evaluate_policies
 
     cfg = task_config(args.env)

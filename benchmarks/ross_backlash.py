@@ -51,7 +51,7 @@ import numpy as np
 
 from gear_env import GearParams, simulate
 from gear_env.io import atomic_write_text
-from gear_env.params import harmonics_from_samples
+from gear_env.sim.params import harmonics_from_samples
 
 # ---- ROSS's test case (ross/tests/test_multi_rotor.py, fixture multi_rotor_with_backlash) ----------------------
 Z = 20

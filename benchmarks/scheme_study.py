@@ -3,7 +3,7 @@
 For period-1 attractors on an omega grid (both models), from a common state on the attractor
 (Newmark, 512 steps per period, 300 periods from MODEL.md A10) each scheme integrates ``--periods``
 mesh periods; the error is the largest |state - reference| over those Poincare points and the 10
-states (b0 units), the reference being ``gear_env.reference`` (DOP853, rtol 1e-11, contact changes
+states (b0 units), the reference being ``gear_env.sim.reference`` (DOP853, rtol 1e-11, contact changes
 located by events). Cost: Newmark step solves per mesh period, counting the extra solves of a
 located contact change (the root search) as steps. Schemes:
 
@@ -25,10 +25,10 @@ import time
 import numpy as np
 
 from gear_env import GearParams, GearSimulator
-from gear_env import kernels as K
 from gear_env.analysis import tangent as TG
-from gear_env.params import model_code
-from gear_env.reference import reference_poincare
+from gear_env.sim import kernels as K
+from gear_env.sim.params import model_code
+from gear_env.sim.reference import reference_poincare
 
 C = K.readonly(np.ascontiguousarray(GearParams().consts))
 

@@ -1,5 +1,5 @@
 """How much of solve_ivp's time is our Python right-hand side? The same DOP853 run with the RHS of
-``gear_env.reference`` (pure Python) and with a numba-compiled copy of it, straight through the
+``gear_env.sim.reference`` (pure Python) and with a numba-compiled copy of it, straight through the
 contact kinks (no events), on the work of ``bench_simulator.py`` (50 mesh periods from a state on
 the attractor), and the paired ratio of each to Newmark at the default step count.
 
@@ -26,7 +26,7 @@ from bench_simulator import _timeit, paired_ratio  # noqa: E402
 
 @njit(cache=False)
 def rhs_numba(s, y, omega, kc, dynamic):
-    """MODEL.md sec. 3b, as gear_env.reference.rhs (region from Delta), constants in ``kc``:
+    """MODEL.md sec. 3b, as gear_env.sim.reference.rhs (region from Delta), constants in ``kc``:
     (eps_p, eps_g, sig_p, sig_g, xi_p, xi_g, xi_m, kappa, phi_k, E1, phi_e, F_s, A0, R, B_c,
     alpha0, g_p, g_g)."""
     eps_p, eps_g, sig_p, sig_g, xi_p, xi_g, xi_m = kc[0], kc[1], kc[2], kc[3], kc[4], kc[5], kc[6]
@@ -79,7 +79,7 @@ def main() -> None:
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     from gear_env import GearParams, GearSimulator, default_steps_per_period
-    from gear_env.reference import RefConsts, reference_poincare, rhs
+    from gear_env.sim.reference import RefConsts, reference_poincare, rhs
 
     p = GearParams()
     k = RefConsts.from_params(p)

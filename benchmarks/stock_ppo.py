@@ -120,7 +120,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     settings = parse_settings(args.set)
 
     from agents.registry import resolve_policy
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
     from gear_env.evaluation import evaluate_policies
 
     cfg = task_config(args.env, settings)

@@ -15,7 +15,7 @@ Sources of the reference values:
 * ISO 6336-1 method B (c' and c_gamma_alpha), a coarser estimate of the same stiffness.
 * The paper (Table 1 k_m0 and its claims, /work/shared/seed; the claims table of docs/RESULTS.md).
 * The model's independent statements: the linear eigenproblem (MODEL.md sec. 5) and the SciPy
-  ``solve_ivp`` integrator of ``gear_env/reference.py``.
+  ``solve_ivp`` integrator of ``gear_env/sim/reference.py``.
 """
 
 from __future__ import annotations
@@ -32,10 +32,10 @@ import numpy as np
 
 from gear_env import GearParams, GearSimulator
 from gear_env.analysis.stability import stability_map
-from gear_env.geometry import SpurPair
 from gear_env.io import atomic_write_text
-from gear_env.linear import natural_frequencies
-from gear_env.reference import reference_poincare
+from gear_env.sim.geometry import SpurPair
+from gear_env.sim.linear import natural_frequencies
+from gear_env.sim.reference import reference_poincare
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from geometry_vs_ross import PAIRS, PHASES  # noqa: E402  (the pairs and phases of the ROSS benchmark)
@@ -96,7 +96,7 @@ def rel(a: float, b: float) -> float:
 def geometry_rows(page: Page) -> None:
     page.section(
         "Mesh stiffness from the teeth against ROSS",
-        "`gear_env.geometry.SpurPair` against ROSS's `Mesh(GearElementTVMS, GearElementTVMS)`. Waveform: "
+        "`gear_env.sim.geometry.SpurPair` against ROSS's `Mesh(GearElementTVMS, GearElementTVMS)`. Waveform: "
         "1000 phases `linspace(0, one mesh period, 1000)`, ROSS's last sample being the end of the period. "
         "Steel E 206 GPa, nu 0.3, rho 7810 kg/m^3, h_a* 1, c* 0.25, 20 deg unless stated.",
     )
@@ -230,7 +230,7 @@ def paper_km0_rows(page: Page) -> None:
         "the bores move it: ROSS at 38.7 mm with bores 40/50 mm gives 7.913e8, i.e. 37.85 mm",
     )
     exact = SpurPair(**{**kw, "face_width": b}, kinematics="line_of_action").mean_mesh_stiffness
-    page.row("mean stiffness, exact path of contact / ROSS's kinematics - 1", "gear_env.geometry (kinematics="
+    page.row("mean stiffness, exact path of contact / ROSS's kinematics - 1", "gear_env.sim.geometry (kinematics="
              "'line_of_action')", "as above", "-", f"{exact / check - 1:+.2%}", "-", None,
              "information: ROSS moves the contact linearly in pressure angle from the form circle")  # fmt: skip
     k0, kap, _ = SpurPair(**{**kw, "face_width": b}).stiffness_harmonics(4)
@@ -264,7 +264,7 @@ def harmonic_rows(page: Page) -> None:
         "Any periodic excitation (Fourier series in the kernels)",
         "The geometry's 16 stiffness harmonics (paper's pair, Table 1 masses and inertias) plus a 3-harmonic "
         "TE ((10, 3, 1) um at phases (0, 0.5, -1) rad) in the Newmark kernels against the series stated "
-        "independently in gear_env/reference.py (SciPy DOP853); the single cosine against the code before "
+        "independently in gear_env/sim/reference.py (SciPy DOP853); the single cosine against the code before "
         "the series existed.",
     )
     root = str(ROOT)
@@ -289,7 +289,7 @@ def harmonic_rows(page: Page) -> None:
     p = GearParams.from_pair(pair, 16, J_p=0.041, J_g=0.079, m_p=1.53, m_g=3.01)
     p = p.replace(te_harmonics=((1e-5, 0.0), (3e-6, 0.5), (1e-6, -1.0)))
     for model, omega in (("dynamic", 1.2), ("constant", 2.8), ("dynamic", 0.25)):
-        reference_row(page, p, model, omega, 200, 10, "gear_env/reference.py with the series", ", 16 + 3 harmonics")
+        reference_row(page, p, model, omega, 200, 10, "gear_env/sim/reference.py with the series", ", 16 + 3 harmonics")
     page.row(
         "cost of 16 + 3 harmonics vs one cosine",
         "issue #28 (<= 1.3x)",
@@ -395,7 +395,7 @@ def existing_rows(page: Page) -> None:
         err < 6e-6,
     )
     for model, omega in (("dynamic", 1.2), ("dynamic", 2.8), ("constant", 0.45)):
-        src = "gear_env/reference.py (SciPy DOP853, rtol 1e-11, contact events)"
+        src = "gear_env/sim/reference.py (SciPy DOP853, rtol 1e-11, contact events)"
         reference_row(page, GearParams(), model, omega, 300, 15, src, "")
     maps = {m: stability_map(m, cache=False) for m in ("constant", "dynamic")}
     iv = {m: max(maps[m].stable_intervals(), key=lambda t: t[1] - t[0]) for m in maps}

@@ -247,7 +247,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     import gear_env  # noqa: F401
     from agents.registry import resolve_policy
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
     from gear_env.evaluation import evaluate_policies
 
     policy, info = train(args)

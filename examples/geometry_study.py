@@ -8,7 +8,7 @@ gives the paper's k_m0 = 7.74e8 N/m (37.85 mm), Table 1's masses and inertias, s
 dimensionless axes are those of every other result; two excitations:
 
 * ``cosine``: the default k_m0 (1 + 0.2 cos phi) (MODEL.md's kappa = 0.2);
-* ``teeth``: the potential-energy waveform of ``gear_env.geometry`` as 16 harmonics.
+* ``teeth``: the potential-energy waveform of ``gear_env.sim.geometry`` as 16 harmonics.
 
 It writes three figures into ``--out``:
 
@@ -33,10 +33,10 @@ import numpy as np
 from gear_env import GearParams, simulate
 from gear_env.analysis.stability import stability_map
 from gear_env.analysis.sweep import sweep
-from gear_env.geometry import SpurPair, ToothCrack
-from gear_env.linear import natural_frequencies
 from gear_env.plots.analysis import plot_bifurcation
 from gear_env.plots.common import new_figure, save_figure
+from gear_env.sim.geometry import SpurPair, ToothCrack
+from gear_env.sim.linear import natural_frequencies
 
 PAIR = dict(module=2e-3, teeth=(55, 75), face_width=0.03785, bore=(0.04, 0.05))
 TABLE1 = dict(J_p=0.041, J_g=0.079, m_p=1.53, m_g=3.01)

@@ -30,7 +30,7 @@ PLANTS = (
 
 def quiet_intervals(omegas, terms) -> list[tuple[float, float]]:
     """Intervals of omega where the steady motion is periodic, keeps contact (< 5 %) and has no impacts."""
-    from gear_env.bands import mask_intervals
+    from gear_env.envs.bands import mask_intervals
 
     imp = np.asarray(terms["drive_impacts"]) + np.asarray(terms["back_impacts"])
     ok = (np.asarray(terms["chaos"]) < 0.5) & (np.asarray(terms["contact_loss"]) < 0.05) & (imp < 1e-3)
@@ -41,8 +41,8 @@ def learned_window(policy_spec: str = "pretrained", hold: int = 8, levels: np.nd
     """One curve per plant of PLANTS (see :func:`gear_env.plots.tasks.plot_learned_window`)."""
     from agents.episode_oracle import cost_map, family_sample
     from agents.registry import resolve_policy
-    from gear_env.env import GearSpeedEnv
-    from gear_env.env_config import task_config
+    from gear_env.envs.env import GearSpeedEnv
+    from gear_env.envs.env_config import task_config
     from gear_env.evaluation import steady_reward_map
 
     base = task_config("GearSpeedDemand-v0")

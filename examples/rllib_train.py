@@ -2,7 +2,7 @@
 
 RLlib builds each EnvRunner's environments with ``gym.make_vec(env_id, num_envs,
 vectorization_mode=...)``; with ``gym_env_vectorize_mode="vector_entry_point"`` that is the
-package's native vector env (``gear_env.vector_env.GearSpeedVectorEnv``: every sub-environment of a
+package's native vector env (``gear_env.envs.vector_env.GearSpeedVectorEnv``: every sub-environment of a
 runner advanced in one numba call), not a ``SyncVectorEnv`` of single envs. The env id is given as
 ``gear_env:<env id>``, so Gymnasium imports ``gear_env`` (which registers the id) in every Ray
 worker, on every node.
@@ -77,7 +77,7 @@ ENV_CONFIG: dict[str, Any] = {}
 
 def eval_config(env_id: str, env_config: Mapping[str, Any] | None = None) -> Any:
     """The validated configuration both policies are evaluated on: the task's settings + ``env_config``."""
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
 
     return task_config(env_id, env_config)
 

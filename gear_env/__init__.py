@@ -1,9 +1,12 @@
 """gear-env: nonlinear dynamics of a spur gear-bearing pair and a Gymnasium speed-scheduling env."""
 
-from . import _numba_cache  # noqa: F401  (must run before any kernel module is imported)
+from . import (
+    _moved,
+    _numba_cache,  # noqa: F401  (must run before any kernel module is imported)
+)
 from .errors import FileFormatError, SimulationDivergedError
-from .params import GearParams
-from .simulator import (
+from .sim.params import GearParams
+from .sim.simulator import (
     DEFAULT_STEPS_PER_PERIOD,
     GearSimulator,
     IntervalStats,
@@ -34,22 +37,23 @@ __all__ = [
 
 
 def _register() -> None:
-    """Register the tasks of :data:`gear_env.tasks.TASK_SETTINGS` with Gymnasium (``GearSpeed-v0``,
+    """Register the tasks of :data:`gear_env.envs.tasks.TASK_SETTINGS` with Gymnasium (``GearSpeed-v0``,
     ``GearSpeed-v1``, ``GearSpeedDemand-v0``; the env modules load only on ``gym.make``), each with
     ``max_episode_steps`` = its episode length."""
     import gymnasium as gym
 
-    from .tasks import TASK_SETTINGS
+    from .envs.tasks import TASK_SETTINGS
 
     for env_id, settings in TASK_SETTINGS.items():
         if env_id not in gym.registry:
             gym.register(
                 id=env_id,
-                entry_point="gear_env.env:GearSpeedEnv",
-                vector_entry_point="gear_env.vector_env:GearSpeedVectorEnv",
+                entry_point="gear_env.envs.env:GearSpeedEnv",
+                vector_entry_point="gear_env.envs.vector_env:GearSpeedVectorEnv",
                 kwargs=dict(settings),
                 max_episode_steps=int(settings.get("max_steps", 200)),
             )
 
 
 _register()
+_moved.install()  # the module paths of 0.4 (gear_env.simulator, ...) as deprecated aliases

@@ -23,11 +23,11 @@ from pathlib import Path
 
 # files (glob patterns) whose njit code is cached (their constants and callees included)
 _SOURCES = (
-    "params.py",
-    "kernels/*.py",  # every module of the kernels package
-    "batch_kernels.py",
-    "env_kernels.py",
-    "env_terms.py",
+    "sim/params.py",
+    "sim/kernels/*.py",  # every module of the kernels package
+    "sim/batch_kernels.py",
+    "envs/env_kernels.py",
+    "envs/env_terms.py",
     "analysis/lyapunov_kernel.py",
     "analysis/testsystems.py",
 )

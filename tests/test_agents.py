@@ -10,8 +10,8 @@ import pytest
 from agents.baselines import ConstantSpeed, HillClimber, SlowRamp
 from agents.oracle import OraclePolicy, QuasiStaticModel, plan_return
 from agents.registry import resolve_policy
-from gear_env.env import GearSpeedEnv
-from gear_env.env_config import GearSpeedConfig
+from gear_env.envs.env import GearSpeedEnv
+from gear_env.envs.env_config import GearSpeedConfig
 from gear_env.evaluation import evaluate_policies
 
 # a cheap configuration: coarse integration, short steps and episodes (same physics and reward)

@@ -20,7 +20,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("gear_env", "agents")
 
-PLOTS_MAY_IMPORT = ("gear_env.plots", "gear_env.io", "gear_env.kernels")
+PLOTS_MAY_IMPORT = ("gear_env.plots", "gear_env.io", "gear_env.sim.kernels")
 """What ``gear_env/plots`` may import inside the package: itself, the atomic writer and the column
 layout constants of the recorded arrays (``kernels.PC_*``). Nothing that computes: no simulator,
 analysis, environment or evaluation module; callers hand the plots their results."""
@@ -208,36 +208,117 @@ def test_plots_take_data(graph):
         f"{m} -> {t}"
         for m in plots
         for t in graph[m]
-        if not any(t == a or t.startswith(a + ".") for a in PLOTS_MAY_IMPORT)
+        # gear_env.sim: the package's __init__ runs on the way to sim.kernels (it imports nothing)
+        if t != "gear_env.sim" and not any(t == a or t.startswith(a + ".") for a in PLOTS_MAY_IMPORT)
     )
     assert not bad, "plots import modules that compute (pass them the results instead):\n" + "\n".join(bad)
 
 
-def test_evaluation_keeps_its_public_names_and_command(capsys):
+def test_evaluation_keeps_its_public_names_and_command(capsys, monkeypatch):
     """The split of ``gear_env.evaluation`` by concern kept every name it exported, and
     ``python -m gear_env.evaluation`` is the command-line layer's steady-map command."""
+    import runpy
+
     import gear_env.evaluation as ev
-    from gear_env import bands, episodes, report, steady_map
     from gear_env.cli import steady
+    from gear_env.envs import bands, steady_map
+    from gear_env.evaluation import episodes, report
 
     old = {"INFO_KEYS", "EpisodeResult", "EvaluationReport", "RegimeBands", "SteadyRewardMap", "METRICS"}
-    old |= {"evaluate_policies", "regime_bands", "run_episode", "steady_reward_map", "main"}
+    old |= {"evaluate_policies", "regime_bands", "run_episode", "steady_reward_map"}
     assert old <= set(dir(ev)) and set(ev.__all__) <= old
     assert ev.steady_reward_map is steady_map.steady_reward_map and ev.regime_bands is bands.regime_bands
     assert ev.evaluate_policies is episodes.evaluate_policies and ev.EvaluationReport is report.EvaluationReport
+    monkeypatch.setattr("sys.argv", ["python -m gear_env.evaluation", "--help"])
     with pytest.raises(SystemExit) as exc:
-        ev.main(["--help"])
+        runpy.run_module("gear_env.evaluation", run_name="__main__")
     assert exc.value.code == 0
     out = capsys.readouterr().out
     assert "python -m gear_env.evaluation" in out and "--steps-per-period" in out
     assert steady.build_parser().parse_args(["--models", "constant"]).models == "constant"
 
 
+LAYERS = {
+    "util": 0,  # gear_env/*.py: errors, io, untrusted, _numba_cache, _extras, _moved
+    "sim": 1,
+    "plots": 1.5,  # results in, figures out: only io and the column constants of sim.kernels
+    "analysis": 2,
+    "envs": 3,
+    "evaluation": 4,
+    "agents": 5,
+    "cli": 6,
+}
+"""The layer folders in import order (docs/ARCHITECTURE.md): a module imports only from its own layer
+or from layers below it. The root ``gear_env/__init__.py`` (the public face: it re-exports the
+simulator and registers the environments) and ``__main__`` modules (entry points) sit outside."""
+
+
+def layer_of(mod: str) -> str | None:
+    """The layer folder of a module name (None for the root package and ``__main__`` modules)."""
+    parts = mod.split(".")
+    if parts[0] == "agents":
+        return "agents"
+    if len(parts) == 1 or parts[-1] == "__main__":
+        return None
+    return parts[1] if parts[1] in LAYERS else "util"
+
+
+def test_layer_folders_import_only_downwards(graph):
+    """The folders show the architecture: every import goes to the importer's layer or below, and
+    only the command line, the agents and entry points import the root package (which loads
+    everything)."""
+    assert {layer_of(m) for m in graph} >= set(LAYERS), "a layer folder is missing or empty"
+    up, root = [], []
+    for m, ts in graph.items():
+        lm = layer_of(m)
+        if lm is None:
+            continue
+        for t in ts:
+            lt = layer_of(t)
+            if lt is None and t == "gear_env" and lm not in ("cli", "agents"):
+                root.append(f"{m} -> gear_env")
+            elif lt is not None and LAYERS[lt] > LAYERS[lm]:
+                up.append(f"{m} ({lm}) -> {t} ({lt})")
+    assert not up, "imports reaching up a layer:\n" + "\n".join(sorted(up))
+    assert not root, "the root package imported from inside the library:\n" + "\n".join(sorted(root))
+
+
+def test_the_layer_check_can_fail():
+    """The checker itself: an upward import is caught, a downward one is not."""
+    g = {"gear_env.sim.kernels": {"gear_env.envs.env_terms"}, "gear_env.envs.env": {"gear_env.sim.params"}}
+    bad = [(m, t) for m, ts in g.items() for t in ts if LAYERS[layer_of(t)] > LAYERS[layer_of(m)]]
+    assert bad == [("gear_env.sim.kernels", "gear_env.envs.env_terms")]
+
+
+def test_old_module_paths_are_deprecated_aliases_of_the_new_ones():
+    """``gear_env.simulator`` and the other paths of 0.4 still import, as the same module objects,
+    with a DeprecationWarning naming the new path; the flat folder holds no such file any more."""
+    import importlib
+    import sys
+
+    from gear_env import _moved
+
+    for old, new in _moved.MOVED.items():
+        assert not (ROOT / (old.replace(".", "/") + ".py")).exists(), old
+        sys.modules.pop(old, None)
+        with pytest.warns(DeprecationWarning, match=new.replace(".", r"\.")):
+            mod = importlib.import_module(old)
+        assert mod is importlib.import_module(new) and mod.__name__ == new and mod.__spec__.name == new
+        sys.modules.pop(old, None)
+    sys.modules.pop("gear_env.kernels.mesh", None)
+    with pytest.warns(DeprecationWarning, match=r"gear_env\.sim\.kernels\.mesh"):
+        mesh = importlib.import_module("gear_env.kernels.mesh")
+    assert mesh is importlib.import_module("gear_env.sim.kernels.mesh")
+    for k in [k for k in sys.modules if k == "gear_env.kernels" or k.startswith("gear_env.kernels.")]:
+        sys.modules.pop(k)
+    assert _moved.new_name("gear_env.io") is None and _moved.new_name("gear_env.analysis.sweep") is None
+
+
 def test_sb3_adapter_is_not_reexported_from_vector_env():
     """The lazy re-export closed a cycle; the old import now says where the class lives."""
-    import gear_env.vector_env as ve
+    import gear_env.envs.vector_env as ve
 
-    with pytest.raises(ImportError, match="gear_env.sb3_adapter"):
+    with pytest.raises(ImportError, match="gear_env.envs.sb3_adapter"):
         ve.SB3VecEnvAdapter  # noqa: B018
     with pytest.raises(AttributeError):
         ve.no_such_name  # noqa: B018

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gear_env import batch_kernels as BK
-from gear_env import kernels as K
-from gear_env.params import GearParams, model_code
-from gear_env.simulator import NEWTON_MAX_ITER, NEWTON_TOL, default_initial_state
+from gear_env.sim import batch_kernels as BK
+from gear_env.sim import kernels as K
+from gear_env.sim.params import GearParams, model_code
+from gear_env.sim.simulator import NEWTON_MAX_ITER, NEWTON_TOL, default_initial_state
 
 
 def _systems(n, model, seed, friction_rows=(), kappas=(0.2,)):

@@ -58,10 +58,10 @@ def test_the_check_finds_a_missing_kernel_name(tmp_path):
     """The check itself can fail: a script calling a kernel function that does not exist."""
     bad = tmp_path / "bad.py"
     bad.write_text("from gear_env import kernels as K\n\ndef f():\n    return K.interval_step_t(1)\n")
-    assert _missing_names(bad) == ["gear_env.kernels.interval_step_t (line 4)"]
+    assert _missing_names(bad) == ["gear_env.sim.kernels.interval_step_t (line 4)"]
     worse = tmp_path / "worse.py"
-    worse.write_text("from gear_env.kernels import no_such_kernel\n")
-    assert _missing_names(worse) == ["gear_env.kernels.no_such_kernel"]
+    worse.write_text("from gear_env.sim.kernels import no_such_kernel\n")
+    assert _missing_names(worse) == ["gear_env.sim.kernels.no_such_kernel"]
 
 
 def test_batch_ratio_benchmark_runs_on_a_small_case():

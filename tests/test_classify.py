@@ -11,7 +11,7 @@ from gear_env.analysis import Classification, classify_motion, largest_lyapunov
 from gear_env.analysis.classify import count_clusters, lyapunov_tolerance, recurrence_residuals, same_orbit
 from gear_env.analysis.lyapunov import lyapunov_map
 from gear_env.analysis.testsystems import Duffing, linear_oscillator
-from gear_env.simulator import GearSimulator
+from gear_env.sim.simulator import GearSimulator
 
 
 # --- synthetic point sets ---------------------------------------------------------------------
@@ -173,10 +173,10 @@ def test_gear_sweep_band_around_2_is_not_periodic():
 
 
 def test_lyapunov_recorder_statistics_match_a_plain_record():
-    from gear_env import kernels as K
     from gear_env.analysis.lyapunov import lyapunov_record
-    from gear_env.params import GearParams, model_code
-    from gear_env.simulator import IntervalStats
+    from gear_env.sim import kernels as K
+    from gear_env.sim.params import GearParams, model_code
+    from gear_env.sim.simulator import IntervalStats
 
     sim = GearSimulator(None, "dynamic", 64, 0.4)  # impacting motion: contact loss > 0
     sim.advance(100)
@@ -198,7 +198,7 @@ def test_lyapunov_record_reports_a_blow_up_and_leaves_the_state():
     compiled pair kernel), never returns NaN, and leaves the caller's state array untouched."""
     from gear_env.analysis.lyapunov import lyapunov_record
     from gear_env.errors import SimulationDivergedError
-    from gear_env.params import GearParams, model_code
+    from gear_env.sim.params import GearParams, model_code
 
     x = np.r_[np.zeros(4), 5e5, np.zeros(4), 1e6]  # |q| + |v| beyond the divergence limit
     before = x.copy()

@@ -33,7 +33,7 @@ def test_cleanrl_trains_and_is_scored_against_the_oracle(mod, tmp_path):
     assert [r["global_step"] for r in res["log"]] == [64, 128]
     # the oracle's returns are those of gear-env's own evaluation on the same seeds
     from agents.registry import resolve_policy
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
     from gear_env.evaluation import evaluate_policies
 
     cfg = task_config("GearSpeed-v1")

@@ -50,7 +50,7 @@ def test_simulate_prints_the_motion_class(capsys):
     out = capsys.readouterr().out
     line = next(ln for ln in out.splitlines() if ln.startswith("motion: "))
     from gear_env.analysis import classify_motion
-    from gear_env.simulator import simulate
+    from gear_env.sim.simulator import simulate
 
     traj = simulate(1.2, periods=8, transient=20, steps_per_period=32)
     assert line.split()[1] == classify_motion(traj.poincare_rows[:, :10]).label

@@ -41,7 +41,8 @@ def test_a_new_process_with_an_empty_cache_announces_the_env_compile(tmp_path):
     import sys
 
     code = (
-        "import gear_env.env_core as C, gear_env.env_config as E; C.GearSpeedCore(E.GearSpeedConfig(), 1, single=True)"
+        "import gear_env.envs.env_core as C, gear_env.envs.env_config as E; "
+        "C.GearSpeedCore(E.GearSpeedConfig(), 1, single=True)"
     )
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
     env.pop("GEAR_ENV_QUIET", None)

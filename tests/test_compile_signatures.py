@@ -19,12 +19,12 @@ import pytest
 _CHILD = r"""
 import json
 import gymnasium as gym
-import gear_env.env
+import gear_env.envs.env
 from gear_env import GearSimulator
-from gear_env import batch_kernels as BK
-from gear_env import kernels as K
+from gear_env.sim import batch_kernels as BK
+from gear_env.sim import kernels as K
 from gear_env.analysis.lyapunov import largest_lyapunov
-from gear_env.vector_env import GearSpeedVectorEnv
+from gear_env.envs.vector_env import GearSpeedVectorEnv
 
 GearSimulator(model="dynamic", omega=1.2, steps_per_period=32).advance(2)
 e = gym.make("GearSpeed-v0")

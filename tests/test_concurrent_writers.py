@@ -81,7 +81,14 @@ def test_a_second_writer_is_refused_and_the_first_loses_nothing(command, tmp_pat
     a = _gear_env(*args, cwd=tmp_path)
     lock = tmp_path / f".{name}.lock"
     t0 = time.monotonic()
-    while not lock.exists() and a.poll() is None and time.monotonic() - t0 < 120:
+    # The lock file is created before it is flocked; the holder's pid is written only once the flock is
+    # held, so wait for the pid (stopping A between open and flock once let B take the lock).
+    while a.poll() is None and time.monotonic() - t0 < 120:
+        try:
+            if lock.read_text().strip() == str(a.pid):
+                break
+        except FileNotFoundError:
+            pass
         time.sleep(0.05)
     assert a.poll() is None, f"writer A ended before B could start: {a.communicate()}"
     # Freeze A while B runs: a stopped process keeps its flock, so B meets a held lock however fast

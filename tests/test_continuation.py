@@ -9,7 +9,6 @@ import math
 import numpy as np
 import pytest
 
-from gear_env import kernels as K
 from gear_env.analysis import tangent as TG
 from gear_env.analysis.continuation import (
     FiniteDifferenceMap,
@@ -20,8 +19,9 @@ from gear_env.analysis.continuation import (
 )
 from gear_env.analysis.floquet import PeriodMap, find_periodic_orbit, linear_multipliers
 from gear_env.analysis.testsystems import duffing_advance
-from gear_env.params import GearParams, model_code
-from gear_env.simulator import NEWTON_MAX_ITER, NEWTON_TOL
+from gear_env.sim import kernels as K
+from gear_env.sim.params import GearParams, model_code
+from gear_env.sim.simulator import NEWTON_MAX_ITER, NEWTON_TOL
 
 
 def _accel(x, phi, omega, c, code):

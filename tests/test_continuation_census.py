@@ -7,7 +7,7 @@ import pytest
 
 from gear_env.analysis.census import attractor_census, start_grid
 from gear_env.analysis.continuation import orbit_at
-from gear_env.params import GearParams
+from gear_env.sim.params import GearParams
 
 
 def test_census_finds_the_two_stable_period1_orbits_at_0p2():

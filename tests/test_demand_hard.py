@@ -8,10 +8,10 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import gear_env  # noqa: F401  (registers the tasks)
-from gear_env.env_config import task_config
-from gear_env.env_core import NOISY_SENSORS
-from gear_env.tasks import DEMAND_HARD_SETTINGS, DEMAND_SETTINGS, WearChange
-from gear_env.vector_env import GearSpeedVectorEnv
+from gear_env.envs.env_config import task_config
+from gear_env.envs.env_core import NOISY_SENSORS
+from gear_env.envs.tasks import DEMAND_HARD_SETTINGS, DEMAND_SETTINGS, WearChange
+from gear_env.envs.vector_env import GearSpeedVectorEnv
 
 SHORT = {"max_steps": 8, "periods_per_step": 8, "warmup_periods": 16}
 

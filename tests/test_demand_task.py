@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gear_env.env_config import task_config
-from gear_env.tasks import DEMAND_SETTINGS, PlantFamily, random_demand
+from gear_env.envs.env_config import task_config
+from gear_env.envs.tasks import DEMAND_SETTINGS, PlantFamily, random_demand
 
 
 @pytest.mark.parametrize(

@@ -38,7 +38,7 @@ def _opts(out: Path, **kw) -> TrainOptions:
 def _teacher_gap(run: Path, seeds) -> float:
     """Mean |student action - teacher action| over the states the teacher visits on ``seeds``."""
     from agents.envs import make_config
-    from gear_env.env import GearSpeedEnv
+    from gear_env.envs.env import GearSpeedEnv
 
     cfg = make_config(ENV, FAST)
     env, teacher = GearSpeedEnv(cfg), teacher_for(ENV, cfg)
@@ -205,7 +205,7 @@ def test_under_a_dead_time_the_teacher_predicts_from_the_students_actions(tmp_pa
     predictor) is the one the environment reaches while another policy drives; the recipe runs there."""
     from agents.distill import sent
     from agents.envs import make_config
-    from gear_env.env import GearSpeedEnv
+    from gear_env.envs.env import GearSpeedEnv
 
     cfg = make_config("GearSpeedDemandHard-v0", FAST)
     env, teacher = GearSpeedEnv(cfg), teacher_for("GearSpeedDemandHard-v0", cfg)

@@ -45,10 +45,12 @@ def _as_glob(name: str) -> str:
 
 
 def test_the_checkers_find_and_judge_names():
-    text = "use `gear_env.env_config.task_config(ID)` and\n```python\nimport agents.registry\n```\n`gear_env/io.py`"
-    assert dotted_names(text) == {"gear_env.env_config.task_config", "agents.registry"}
-    assert resolves("gear_env.env_config.task_config") and resolves("agents.registry.resolve_policy")
-    assert not resolves("gear_env.tasks.task_config")  # issue #26: ENVIRONMENT.md named it
+    text = (
+        "use `gear_env.envs.env_config.task_config(ID)` and\n```python\nimport agents.registry\n```\n`gear_env/io.py`"
+    )
+    assert dotted_names(text) == {"gear_env.envs.env_config.task_config", "agents.registry"}
+    assert resolves("gear_env.envs.env_config.task_config") and resolves("agents.registry.resolve_policy")
+    assert not resolves("gear_env.envs.tasks.task_config")  # issue #26: ENVIRONMENT.md named it
     assert not resolves("gear_env.nope")
     assert any(ROOT.glob(_as_glob("gear_env/data/stability_{constant,dynamic}.json")))
     assert not any(ROOT.glob(_as_glob("gear_env/data/nope_{a,b}.json")))

@@ -33,9 +33,9 @@ SLOW = {
 }
 NOT_RUN = {
     "ANALYSIS-1": "continuation over omega 0.05-3.0 (minutes); tests/test_continuation*.py run continue_orbits",
-    "ENVIRONMENT-1": "lines to paste into gear_env/env_terms.py and env_kernels.py (how to add a reward term)",
+    "ENVIRONMENT-1": "lines to paste into gear_env/envs/env_terms.py and env_kernels.py (how to add a reward term)",
     "ENVIRONMENT-2": "lines to paste into env_terms.py and env_kernels.py (how to add a cost term)",
-    "ENVIRONMENT-3": "a class declaration to paste into gear_env/env_config.py",
+    "ENVIRONMENT-3": "a class declaration to paste into gear_env/envs/env_config.py",
     "GEOMETRY-0": "a synopsis whose SpurPair(..., crack=...) elides the arguments; tests/test_geometry.py",
 }
 
@@ -86,4 +86,4 @@ def test_slow_block_runs_as_a_script(page, index, block, tmp_path):
 
 def test_the_import_check_can_fail():
     with pytest.raises(ImportError):
-        exec("from gear_env.tasks import task_config", {})  # the path ENVIRONMENT.md once named
+        exec("from gear_env.envs.tasks import task_config", {})  # the path ENVIRONMENT.md once named

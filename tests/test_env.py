@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 import gear_env  # noqa: F401  (registers GearSpeed-v0)
-from gear_env import kernels as K
-from gear_env.env import GearSpeedEnv
-from gear_env.env_config import GearSpeedConfig
-from gear_env.env_core import INFO_KEYS, REWARD_KEYS, periodicity_defect
+from gear_env.envs.env import GearSpeedEnv
+from gear_env.envs.env_config import GearSpeedConfig
+from gear_env.envs.env_core import INFO_KEYS, REWARD_KEYS, periodicity_defect
 from gear_env.evaluation import steady_reward_map
+from gear_env.sim import kernels as K
 
 FAST = dict(max_steps=6, periods_per_step=8, warmup_periods=16)
 
@@ -293,7 +293,7 @@ def test_steady_reward_map_prefers_the_quiet_window():
 
 
 def test_defect_kernel_matches_numpy_reference():
-    from gear_env.env_kernels import defect_of
+    from gear_env.envs.env_kernels import defect_of
 
     rng = np.random.default_rng(0)
     hist = rng.normal(size=(5, 16, 2)) * np.array([1e-3, 1.0, 0.01, 0.02, 3.0])[:, None, None]
@@ -308,7 +308,7 @@ def test_defect_kernel_matches_numpy_reference():
 def test_step_features_match_an_independent_recorded_trajectory():
     """Contact loss, impacts and peak force of a step equal those of the simulator's full record
     (integrate_record) over the same interval from the same state."""
-    from gear_env.simulator import GearSimulator
+    from gear_env.sim.simulator import GearSimulator
 
     env = GearSpeedEnv(periods_per_step=8, warmup_periods=16, max_steps=10)
     env.reset(seed=0, options={"omega": 1.45})  # period-1 with ~45 % contact loss, one impact per period

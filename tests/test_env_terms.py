@@ -1,4 +1,4 @@
-"""The environment's terms are declared once (gear_env/env_terms.py): config fields, info keys, the
+"""The environment's terms are declared once (gear_env/envs/env_terms.py): config fields, info keys, the
 reward sum, the kernels' formulas, the observation names and the docs tables follow the table."""
 
 from __future__ import annotations
@@ -11,12 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gear_env import env_kernels as EK
-from gear_env import env_terms as ET
-from gear_env.env import GearSpeedEnv
-from gear_env.env_config import GearSpeedConfig
-from gear_env.env_core import INFO_KEYS, REWARD_KEYS
-from gear_env.vector_env import GearSpeedVectorEnv
+from gear_env.envs import env_kernels as EK
+from gear_env.envs import env_terms as ET
+from gear_env.envs.env import GearSpeedEnv
+from gear_env.envs.env_config import GearSpeedConfig
+from gear_env.envs.env_core import INFO_KEYS, REWARD_KEYS
+from gear_env.envs.vector_env import GearSpeedVectorEnv
 
 FAST = dict(max_steps=6, periods_per_step=8, warmup_periods=16)
 V0 = ET.task("GearSpeed-v0")
@@ -160,7 +160,7 @@ def test_docs_tables_are_generated_from_the_table():
     text = DOCS.read_text(encoding="utf-8")
     for which in ("settings", "rewards", "info", "observations"):
         assert f"<!-- table:GearSpeed-v0:{which} -->" in text
-    assert ET.update_docs(text) == text, "run: python -m gear_env.env_terms docs/ENVIRONMENT.md"
+    assert ET.update_docs(text) == text, "run: python -m gear_env.envs.env_terms docs/ENVIRONMENT.md"
     # and a changed declaration changes the generated text
     assert "w_throughput" in V0.markdown("rewards") and "| omega |" in V0.markdown("observations")
 

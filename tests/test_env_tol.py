@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import gear_env  # noqa: F401  (registers the ids)
-from gear_env.vector_env import GearSpeedVectorEnv
+from gear_env.envs.vector_env import GearSpeedVectorEnv
 
 ACTIONS = np.array([0.2, 0.35, 0.35, -0.1, 0.5, 0.5], np.float32)
 
@@ -29,7 +29,7 @@ def _single(seed: int, **kw) -> tuple[np.ndarray, np.ndarray]:
 @pytest.mark.parametrize("n", [2, 9])  # 9 rows: above the SIMD lanes' threshold of the fixed-step path
 def test_single_and_vector_env_are_identical_with_tol(n):
     seeds = [11 + i for i in range(n)]
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
 
     vec = GearSpeedVectorEnv(n, task_config("GearSpeedDemand-v0", {"tol": 1e-3}))
     o, _ = vec.reset(seed=seeds)

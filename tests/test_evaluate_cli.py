@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from gear_env.cli import main
+from gear_env.envs.schedules import SpeedSchedule
 from gear_env.evaluation import evaluate_policies, regime_bands
-from gear_env.schedules import SpeedSchedule
 
 FAST = dict(max_steps=12, periods_per_step=8, warmup_periods=16)
 

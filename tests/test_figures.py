@@ -12,7 +12,7 @@ from gear_env.analysis.spectrum import waterfall
 from gear_env.analysis.stability import default_stability_map
 from gear_env.cli import main
 from gear_env.plots import analysis as pa
-from gear_env.simulator import simulate
+from gear_env.sim.simulator import simulate
 
 
 @pytest.fixture(scope="module")
@@ -137,7 +137,7 @@ def _overlapping_boxes(fig) -> list[str]:
 def _fake_report():
     from types import SimpleNamespace
 
-    from gear_env.env_config import GearSpeedConfig
+    from gear_env.envs.env_config import GearSpeedConfig
 
     w = list(np.linspace(1.9, 0.6, 27)) + [0.6 + 0.01 * k for k in range(173)]
     ep = SimpleNamespace(omega=w, vibration=list(np.linspace(1.2, 3.5, 200)), ret=12.5)
@@ -148,8 +148,8 @@ def test_figure_labels_use_symbols_and_units(runs):
     """Labels in mathtext (omega, Delta, psi, b_0), Poincaré with its accent, no nested brackets."""
     from types import SimpleNamespace
 
-    from gear_env.bands import RegimeBands
-    from gear_env.env_config import GearSpeedConfig
+    from gear_env.envs.bands import RegimeBands
+    from gear_env.envs.env_config import GearSpeedConfig
     from gear_env.plots import plot_trajectory
     from gear_env.plots.env import EnvFrame, plot_evaluation, plot_steady_reward
 
@@ -216,7 +216,7 @@ def test_figure_texts_checker_catches_ascii_labels():
 def test_evaluation_figure_states_rate_limit_and_reads_log_ticks_plainly():
     """The ramp's curve lags its command: the figure says why; the log axis reads 2, 3 (not 2x10^0);
     the legend sits beside the axes, not on the curves."""
-    from gear_env.bands import RegimeBands
+    from gear_env.envs.bands import RegimeBands
     from gear_env.plots.env import plot_evaluation
 
     rep = _fake_report()
@@ -257,7 +257,7 @@ def test_poincare_map_of_a_periodic_orbit_is_not_blown_up_to_round_off():
 
 
 def test_env_frame_draws_without_bands():
-    from gear_env.env_config import GearSpeedConfig
+    from gear_env.envs.env_config import GearSpeedConfig
     from gear_env.plots.env import EnvFrame
 
     frame = EnvFrame(GearSpeedConfig())

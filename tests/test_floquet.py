@@ -9,8 +9,8 @@ import pytest
 
 from gear_env.analysis.floquet import classify_multipliers, find_periodic_orbit, linear_multipliers
 from gear_env.analysis.stability import StabilityMap, default_stability_map, stability_map
-from gear_env.params import GearParams
-from gear_env.simulator import GearSimulator
+from gear_env.sim.params import GearParams
+from gear_env.sim.simulator import GearSimulator
 
 
 def _match(a: np.ndarray, b: np.ndarray) -> float:

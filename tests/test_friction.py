@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from gear_env import kernels as K
 from gear_env.analysis.floquet import find_periodic_orbit
-from gear_env.params import GearParams, model_code
-from gear_env.simulator import GearSimulator, simulate
+from gear_env.sim import kernels as K
+from gear_env.sim.params import GearParams, model_code
+from gear_env.sim.simulator import GearSimulator, simulate
 
 
 def test_friction_force_is_tangential_and_opposite():

@@ -1,4 +1,4 @@
-"""Spur geometry and the mesh stiffness from the teeth (gear_env/geometry.py), pinned to ROSS.
+"""Spur geometry and the mesh stiffness from the teeth (gear_env/sim/geometry.py), pinned to ROSS.
 
 ROSS values: ROSS's own tests/test_gear_element.py (the 62/62 pair), and for the other pairs
 the output of ``python benchmarks/geometry_vs_ross.py --ross-python <python with ross> --json``
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from gear_env.geometry import SpurGear, SpurPair, ToothCrack
+from gear_env.sim.geometry import SpurGear, SpurPair, ToothCrack
 
 ROSS_PAIR = dict(
     module=2e-3,

@@ -23,10 +23,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import gear_env  # noqa: F401  (registers GearSpeed-v0)
-from gear_env.env import GearSpeedEnv
-from gear_env.env_config import GearSpeedConfig
-from gear_env.schedules import SpeedSchedule
-from gear_env.vector_env import GearSpeedVectorEnv
+from gear_env.envs.env import GearSpeedEnv
+from gear_env.envs.env_config import GearSpeedConfig
+from gear_env.envs.schedules import SpeedSchedule
+from gear_env.envs.vector_env import GearSpeedVectorEnv
 
 # cheap physics: a step is a few mesh periods at 16 Newmark steps
 TINY = dict(periods_per_step=2, steps_per_period=16, warmup_periods=0, poincare_window=9)
@@ -241,7 +241,7 @@ def test_vector_env_actions(vector_env, action):
 
 @pytest.fixture(scope="module")
 def sb3_env():
-    from gear_env.sb3_adapter import SB3VecEnvAdapter
+    from gear_env.envs.sb3_adapter import SB3VecEnvAdapter
 
     venv = SB3VecEnvAdapter(N_VEC, seed=0, max_steps=10**6, **TINY)
     venv.reset()
@@ -531,8 +531,8 @@ ROLLOUT = textwrap.dedent(
     """
     import json, sys
     import numpy as np
-    from gear_env.env import GearSpeedEnv
-    from gear_env.vector_env import GearSpeedVectorEnv
+    from gear_env.envs.env import GearSpeedEnv
+    from gear_env.envs.vector_env import GearSpeedVectorEnv
 
     def rollout():
         kw = dict(max_steps=5, periods_per_step=6, warmup_periods=12, randomize_params=True)

@@ -159,7 +159,7 @@ def run_subproc_vec_env(tmp_path, n: int, cache_dir: str | None):
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     assert out["subproc"] == out["dummy"]  # bit-identical, every step
     # and the first observations equal single envs seeded 7 + i in this process
-    from gear_env.env import GearSpeedEnv
+    from gear_env.envs.env import GearSpeedEnv
 
     first = [
         GearSpeedEnv(max_steps=4, periods_per_step=4, warmup_periods=8, steps_per_period=32).reset(seed=7 + i)[0]

@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 
 from gear_env import GearParams, GearSimulator, simulate, simulate_batch
-from gear_env import kernels as K
 from gear_env.analysis.continuation import OrbitMap
 from gear_env.analysis.floquet import PeriodMap, find_periodic_orbit
-from gear_env.geometry import SpurPair, ToothCrack
-from gear_env.params import C_NE, C_NK, C_TAIL, N_CONSTS, harmonics_from_samples, stack_consts
-from gear_env.reference import reference_poincare
+from gear_env.sim import kernels as K
+from gear_env.sim.geometry import SpurPair, ToothCrack
+from gear_env.sim.params import C_NE, C_NK, C_TAIL, N_CONSTS, harmonics_from_samples, stack_consts
+from gear_env.sim.reference import reference_poincare
 
 PAPER_PAIR = SpurPair(module=2e-3, teeth=(55, 75), face_width=0.03785, bore=(0.04, 0.05))
 # the paper's masses and inertias (Table 1) with the geometry's stiffness: k_m0 ~ 7.74e8 N/m
@@ -92,7 +92,7 @@ def test_kernel_excitation_evaluates_the_series():
 @pytest.mark.parametrize("model, omega", [("dynamic", 1.2), ("constant", 2.8), ("dynamic", 0.25)])
 def test_series_agree_with_the_independent_reference(model, omega):
     """16 stiffness harmonics of the paper's pair plus a 3-harmonic TE: Newmark against SciPy's
-    DOP853 on the reference's own statement of the series (gear_env/reference.py)."""
+    DOP853 on the reference's own statement of the series (gear_env/sim/reference.py)."""
     p = GEO.replace(te_harmonics=TE3)
     sim = GearSimulator(p, model, None, omega)
     sim.advance(200)
@@ -130,7 +130,7 @@ def test_tangent_map_stays_exact_with_series(model):
 def test_vector_env_takes_a_geometry_pair():
     """The environment's configuration takes a geometry pair (as GearParams or its JSON dict),
     also with per-episode randomised physics (which scales the whole series)."""
-    from gear_env.vector_env import GearSpeedVectorEnv
+    from gear_env.envs.vector_env import GearSpeedVectorEnv
 
     for params in (GEO, json.loads(json.dumps(GEO.to_dict()))):
         env = GearSpeedVectorEnv(2, params=params, randomize_params=True)
@@ -160,7 +160,7 @@ def test_from_pair_takes_the_geometry():
     assert len(p.stiffness_harmonics) == 8 and p.kappa == p.stiffness_harmonics[0][0]
     with pytest.raises(ValueError, match="cracked pair"):
         GearParams.from_pair(SpurPair(**{**_kw(PAPER_PAIR), "crack": ToothCrack(depth=5e-4)}))
-    with pytest.raises(ValueError, match="takes a gear_env.geometry.SpurPair"):
+    with pytest.raises(ValueError, match="takes a gear_env.sim.geometry.SpurPair"):
         GearParams.from_pair({"module": 2e-3})
 
 

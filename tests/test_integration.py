@@ -1,4 +1,4 @@
-"""The one Python-side way into the kernels (gear_env.integration.integrate): every path gives the
+"""The one Python-side way into the kernels (gear_env.sim.integration.integrate): every path gives the
 same numbers bit for bit, outputs go where the caller asks, and bad combinations are refused."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from gear_env import GearParams, default_initial_state
-from gear_env import kernels as K
-from gear_env.integration import integrate
+from gear_env.sim import kernels as K
+from gear_env.sim.integration import integrate
 
 
 def _starts(n: int, model: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

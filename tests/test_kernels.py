@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from gear_env import GearParams, GearSimulator, default_initial_state
-from gear_env import kernels as K
-from gear_env.linear import matrices, modes, natural_frequencies
-from gear_env.reference import RefConsts, mesh_geometry, rhs
+from gear_env.sim import kernels as K
+from gear_env.sim.linear import matrices, modes, natural_frequencies
+from gear_env.sim.reference import RefConsts, mesh_geometry, rhs
 
 
 def test_backlash_dead_zone():
@@ -314,7 +314,7 @@ def test_lazy_entry_ends_in_split_resume_like_the_compiled_loop(monkeypatch, spe
     """The interval ends inside ``split_resume`` (the split step diverges, or fails after earlier split
     steps went through): the lazy entry reports the same status, periods, time, state, accelerations,
     Poincare rows and statistics as ``integrate_stats``, and the state it returns is finite."""
-    from gear_env.kernels import drivers as D
+    from gear_env.sim.kernels import drivers as D
 
     p = GearParams()
     c = K.readonly(p.consts)
@@ -342,8 +342,8 @@ def test_lazy_entry_ends_in_split_resume_like_the_compiled_loop(monkeypatch, spe
     assert np.all(np.isfinite(arrays1[0])) and np.all(np.isfinite(arrays1[1]))
 
 
-# every name gear_env.kernels had when it was one file (kernels.py, before the split into a package);
-# other modules and branches import them from gear_env.kernels
+# every name gear_env.sim.kernels had when it was one file (kernels.py, before the split into a package);
+# other modules and branches import them from gear_env.sim.kernels
 _NAMES_BEFORE_SPLIT = """
 BETA C_A0 C_ALPHA0 C_BC C_COS_A0 C_E1 C_EPS_G C_EPS_P C_FS C_GG C_GP C_KAPPA C_MU C_PHI_E C_PHI_K C_R C_SIG_G
 C_SIG_P C_SIN_A0 C_XI_BG C_XI_BP C_XI_M DIVERGED DIVERGENCE_LIMIT DQ_LINEAR FRICTION_SHARPNESS GAMMA GEO_SIZE
@@ -363,7 +363,7 @@ def test_kernels_package_keeps_every_name_of_the_single_module():
     missing = [n for n in _NAMES_BEFORE_SPLIT if not hasattr(K, n)]
     assert missing == []
     # the same objects as in the concern modules (one definition each, re-exported)
-    from gear_env.kernels import drivers, layout, mesh, newmark
+    from gear_env.sim.kernels import drivers, layout, mesh, newmark
 
     assert K.integrate_stats is drivers.integrate_stats and K.backlash is mesh.backlash
     assert K.newton_iter_t is newmark.newton_iter_t and K.ST_F_MAX == layout.ST_F_MAX

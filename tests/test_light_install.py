@@ -55,7 +55,7 @@ def test_core_runs_the_environments_schedules_and_evaluation_without_torch(tmp_p
         import gear_env
         from gear_env import simulate
         from gear_env.evaluation import evaluate_policies
-        from gear_env.schedules import SpeedSchedule
+        from gear_env.envs.schedules import SpeedSchedule
         from agents.registry import resolve_policy
 
         assert simulate(1.2, periods=5, transient=5).amplitude("U") > 0
@@ -67,7 +67,7 @@ def test_core_runs_the_environments_schedules_and_evaluation_without_torch(tmp_p
         venv = gym.make_vec("GearSpeed-v1", num_envs=2, vectorization_mode="vector_entry_point")
         venv.reset(seed=0)
         venv.step(np.zeros((2, 1), np.float32))
-        cfg = gear_env.env_config.task_config("GearSpeed-v1", {"max_steps": 3})
+        cfg = gear_env.envs.env_config.task_config("GearSpeed-v1", {"max_steps": 3})
         rep = evaluate_policies(
             {"s": SpeedSchedule.constant(1.2), "h": resolve_policy("hill-climber", cfg)}, cfg, episodes=1
         )
@@ -79,7 +79,7 @@ def test_core_runs_the_environments_schedules_and_evaluation_without_torch(tmp_p
         else:
             raise AssertionError("the pretrained policy loaded without torch")
         try:
-            import gear_env.sb3_adapter  # noqa: F401
+            import gear_env.envs.sb3_adapter  # noqa: F401
         except ImportError as exc:
             assert "gear-env[rl]" in str(exc), exc
         else:

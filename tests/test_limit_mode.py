@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gear_env import env_kernels as EK
-from gear_env.env import GearSpeedEnv
-from gear_env.env_config import GearSpeedConfig, task_config
-from gear_env.env_terms import ACTION_CODES
+from gear_env.envs import env_kernels as EK
+from gear_env.envs.env import GearSpeedEnv
+from gear_env.envs.env_config import GearSpeedConfig, task_config
+from gear_env.envs.env_terms import ACTION_CODES
 
 SHORT = {"periods_per_step": 8, "warmup_periods": 16, "max_steps": 30}
 
@@ -84,8 +84,8 @@ def test_bad_action_range_names_the_field(bad):
 def test_scripts_and_schedules_speak_the_action_range():
     """A constant-speed script and a schedule hold their speed when the actions are rescaled."""
     from agents.registry import resolve_policy
+    from gear_env.envs.schedules import SpeedSchedule
     from gear_env.evaluation import evaluate_policies
-    from gear_env.schedules import SpeedSchedule
 
     cfg = task_config("GearSpeed-v1", {**SHORT, "action_range": (1.0, 1.6)})
     pols = {"const": resolve_policy("constant:1.3", cfg), "sched": SpeedSchedule.constant(1.3, config=cfg)}

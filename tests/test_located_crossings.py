@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from gear_env import GearParams, GearSimulator
-from gear_env import kernels as K
 from gear_env.analysis import tangent as TG
-from gear_env.params import model_code
-from gear_env.reference import reference_poincare
+from gear_env.sim import kernels as K
+from gear_env.sim.params import model_code
+from gear_env.sim.reference import reference_poincare
 
 C = K.readonly(np.ascontiguousarray(GearParams().consts))
 

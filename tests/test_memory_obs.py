@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 import gear_env  # noqa: F401
-from gear_env import kernels as K
-from gear_env.env import GearSpeedEnv
-from gear_env.env_config import GearSpeedConfig, task_config
-from gear_env.env_core import GearSpeedCore
-from gear_env.env_terms import TROUBLE_CONTACT
-from gear_env.vector_env import GearSpeedVectorEnv
+from gear_env.envs.env import GearSpeedEnv
+from gear_env.envs.env_config import GearSpeedConfig, task_config
+from gear_env.envs.env_core import GearSpeedCore
+from gear_env.envs.env_terms import TROUBLE_CONTACT
+from gear_env.envs.vector_env import GearSpeedVectorEnv
+from gear_env.sim import kernels as K
 
 MEMORY = ("trouble_omega", "trouble_recency", "prev_force_rms", "prev_contact_loss")
 FAST = dict(max_steps=6, periods_per_step=8, warmup_periods=16)

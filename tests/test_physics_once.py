@@ -12,18 +12,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gear_env import batch_kernels as BK
-from gear_env import kernels as K
-from gear_env.params import GearParams, model_code
-from gear_env.reference import RefConsts, reference_initial_state, rhs
-from gear_env.simulator import NEWTON_MAX_ITER, NEWTON_TOL
+from gear_env.sim import batch_kernels as BK
+from gear_env.sim import kernels as K
+from gear_env.sim.params import GearParams, model_code
+from gear_env.sim.reference import RefConsts, reference_initial_state, rhs
+from gear_env.sim.simulator import NEWTON_MAX_ITER, NEWTON_TOL
 
 PKG = Path(__file__).resolve().parents[1] / "gear_env"
 
 # the step constants that enter the equations of motion (kernels.layout K_*)
 EOM_CONSTANTS = {"K_IEP", "K_IEG", "K_C_P", "K_C_G", "K_K_P", "K_K_G", "K_EXT_P", "K_EXT_G", "K_XIM2", "K_FS"}
 # where they may be named: their definition, the package's re-export, and the one model file
-EOM_HOME = {"kernels/layout.py", "kernels/__init__.py", "kernels/mesh.py"}
+EOM_HOME = {"sim/kernels/layout.py", "sim/kernels/__init__.py", "sim/kernels/mesh.py"}
 
 
 def _random_states(rng, n):
@@ -55,9 +55,9 @@ def test_equation_of_motion_constants_are_read_only_in_kernels_mesh():
                 positional.append(f"{rel}:{node.lineno}")
     assert named == [] and positional == [], (named, positional)
     # and the paths that need them call the leaves
-    newmark = (PKG / "kernels/newmark.py").read_text(encoding="utf-8")
+    newmark = (PKG / "sim/kernels/newmark.py").read_text(encoding="utf-8")
     assert "eom_residual_t(" in newmark and "force_gradient_t(" in newmark and "bearing_t(" in newmark
-    assert "K.newton_iter_t(" in (PKG / "batch_kernels.py").read_text(encoding="utf-8")
+    assert "K.newton_iter_t(" in (PKG / "sim/batch_kernels.py").read_text(encoding="utf-8")
     tangent = (PKG / "analysis/tangent.py").read_text(encoding="utf-8")
     assert "K.force_direction_t(" in tangent and "K.backlash_slopes(" in tangent
 

@@ -59,7 +59,7 @@ def test_statistics_refuse_bad_input():
 
 @pytest.fixture(scope="module")
 def demand_cfg():
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
 
     return task_config("GearSpeedDemand-v0")
 
@@ -83,7 +83,7 @@ def test_bad_demand_specs_are_refused(demand_cfg, spec, match):
 
 def test_demand_scripts_need_the_demand_task():
     from agents.registry import resolve_policy
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
 
     with pytest.raises(ValueError, match="needs a task with a demand"):
         resolve_policy("sensor-servo", task_config("GearSpeed-v1"), env_id="GearSpeed-v1")
@@ -206,7 +206,7 @@ def test_distillation_recipe_learns_the_hard_task(tmp_path):
     0, closes >= HARD_SHARE of the gap on the 50 validation episodes (no timing); it closed 63.0 % when written.
     The full recipe's seed 0 closed 77.8 % there and the task's best script, ``filtered-follow``, 66.5 %."""
     from agents.ppo import TrainOptions, train
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
 
     hard = "GearSpeedDemandHard-v0"
     out = tmp_path / "run"

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from gear_env import env_kernels as EK
-from gear_env.env import GearSpeedEnv
-from gear_env.env_config import GearSpeedConfig, task_config
+from gear_env.envs import env_kernels as EK
+from gear_env.envs.env import GearSpeedEnv
+from gear_env.envs.env_config import GearSpeedConfig, task_config
 
 SHORT = {"periods_per_step": 8, "warmup_periods": 16, "max_steps": 40}
 
@@ -76,7 +76,7 @@ def test_scripted_policies_invert_the_filter():
     """fixed-best and a schedule command the set-point whose filtered step lands on their target, so they
     follow the same omega path as without the filter (full rate, then hold)."""
     from agents.baselines import ConstantSpeed
-    from gear_env.schedules import SpeedSchedule
+    from gear_env.envs.schedules import SpeedSchedule
 
     paths = {}
     for alpha in (1.0, 0.3):

@@ -281,7 +281,7 @@ def test_random_policy_specs_are_checked():
 
 
 def test_gear_params_unknown_field_is_a_value_error():
-    from gear_env.params import GearParams
+    from gear_env.sim.params import GearParams
 
     with pytest.raises(ValueError, match=r"unknown GearParams field\(s\) \['stiffness'\]"):
         GearParams(stiffness=1)

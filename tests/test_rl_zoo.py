@@ -22,7 +22,7 @@ pytest.importorskip("rl_zoo3", reason="rl-zoo3 is not installed (pip install -e 
 optuna = pytest.importorskip("optuna", reason="optuna is not installed (pip install -e '.[zoo]')")
 yaml = pytest.importorskip("yaml")
 
-from gear_env.env_config import task_config  # noqa: E402
+from gear_env.envs.env_config import task_config  # noqa: E402
 
 ZOO_ENV = "GearSpeed-v1"  # the task the tests train on: the well-posed default task, as in docs/TRAINING.md
 
@@ -90,7 +90,7 @@ def test_rl_zoo_train_then_enjoy_replays_what_gear_env_evaluates(tmp_path):
     from stable_baselines3 import PPO
 
     from agents.trained import TrainedPolicy, load_vecnormalize
-    from gear_env.env import GearSpeedEnv
+    from gear_env.envs.env import GearSpeedEnv
     from gear_env.evaluation import run_episode
 
     logs = tmp_path / "logs"

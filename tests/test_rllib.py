@@ -21,9 +21,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from gear_env.env import GearSpeedEnv
-from gear_env.env_config import task_config
-from gear_env.vector_env import GearSpeedVectorEnv
+from gear_env.envs.env import GearSpeedEnv
+from gear_env.envs.env_config import task_config
+from gear_env.envs.vector_env import GearSpeedVectorEnv
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV_ID = "GearSpeed-v1"  # the task RLlib trains on here (the example's default)
@@ -80,7 +80,7 @@ class TestRLlibTrainAndCompare:
         r = res["rllib"]
         assert res["format"] == "gear-env-rllib/1" and res["env_id"] == ENV_ID == mod.ENV_ID
         # every EnvRunner (here one remote actor) stepped the package's own vector env
-        assert r["vector_env_classes"] == ["gear_env.vector_env.GearSpeedVectorEnv"]
+        assert r["vector_env_classes"] == ["gear_env.envs.vector_env.GearSpeedVectorEnv"]
         assert r["ppo"]["train_batch_size_per_learner"] == 4 * 128
         # RLlib's PPO takes the SB3 agent's values from agents/hyperparams/ppo.yml
         from agents.hyperparams import load_zoo_entry

@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from gear_env.env import GearSpeedEnv
-from gear_env.schedules import SpeedSchedule
+from gear_env.envs.env import GearSpeedEnv
+from gear_env.envs.schedules import SpeedSchedule
 
 FAST = dict(max_steps=30, periods_per_step=8, warmup_periods=16)
 
@@ -72,7 +72,7 @@ def test_predict_is_batch_aware_and_resets_per_env():
 def test_works_with_sb3_evaluate_policy():
     from stable_baselines3.common.evaluation import evaluate_policy
 
-    from gear_env.sb3_adapter import SB3VecEnvAdapter
+    from gear_env.envs.sb3_adapter import SB3VecEnvAdapter
 
     cfg = dict(FAST, max_steps=10)
     venv = SB3VecEnvAdapter(2, seed=0, **cfg)
@@ -166,7 +166,7 @@ def test_unbound_schedule_refuses_to_act_and_evaluation_binds_it_to_its_task():
     the same return as the schedule built for that task."""
     import gymnasium as gym
 
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
     from gear_env.evaluation import evaluate_policies
 
     pts = [(0, 0.6), (5, 1.25)]

@@ -11,8 +11,8 @@ import pytest
 import gear_env  # noqa: F401  (registers the tasks)
 from agents.baselines import ConstantSpeed, HillClimber, SlowRamp
 from agents.envs import GEAR_ENV_ID, make_config
-from gear_env.env_config import task_config
-from gear_env.episodes import run_episode
+from gear_env.envs.env_config import task_config
+from gear_env.evaluation.episodes import run_episode
 
 FAST = {"max_steps": 6, "steps_per_period": 32, "warmup_periods": 16}
 

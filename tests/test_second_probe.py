@@ -292,7 +292,7 @@ def test_bool_actions_are_refused_like_text(env_id):
 def test_pretrained_policy_of_another_task_is_refused(tmp_path, monkeypatch):
     """A shipped policy.json whose env_id names another task (same spaces) was loaded for the asked task."""
     import agents.registry as reg
-    from gear_env.env_config import task_config
+    from gear_env.envs.env_config import task_config
 
     d = tmp_path / "GearSpeedDemandHard-v0"
     shutil.copytree(ROOT / "gear_env" / "data" / "policies" / "GearSpeedDemandHard-v0", d)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from gear_env import GearParams, GearSimulator, SimulationDivergedError, default_initial_state, simulate
-from gear_env.reference import RefConsts, mesh_quantities, rhs
+from gear_env.sim.reference import RefConsts, mesh_quantities, rhs
 
 
 @pytest.mark.parametrize("model", ["constant", "dynamic"])
@@ -140,7 +140,7 @@ def test_no_nan_ever_returned():
 def test_default_steps_per_period_rule_and_ramps():
     """192 steps per mesh period, more below omega ~ 0.27 (natural-time step <= 0.12)."""
     from gear_env import default_steps_per_period
-    from gear_env.simulator import MAX_NATURAL_STEP
+    from gear_env.sim.simulator import MAX_NATURAL_STEP
 
     assert default_steps_per_period(1.2) == 192 and default_steps_per_period(0.3) == 192
     assert default_steps_per_period(0.2) == 262

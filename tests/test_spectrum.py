@@ -7,7 +7,7 @@ import pytest
 
 from gear_env.analysis.floquet import find_periodic_orbit
 from gear_env.analysis.spectrum import amplitude_spectrum, waterfall
-from gear_env.simulator import GearSimulator
+from gear_env.sim.simulator import GearSimulator
 
 N = 64  # samples per mesh period
 

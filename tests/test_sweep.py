@@ -10,7 +10,7 @@ import pytest
 from gear_env.analysis import SweepResult, sweep
 from gear_env.analysis.results import ResultsFileError
 from gear_env.analysis.sweep import SweepConfig, run_point, steps_for
-from gear_env.params import GearParams
+from gear_env.sim.params import GearParams
 
 FAST = dict(transient=40, periods=24, progress=False, steps_per_period=64)
 

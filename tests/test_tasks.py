@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import gear_env  # noqa: F401  (registers the tasks)
-from gear_env.env import GearSpeedEnv
-from gear_env.env_config import GearSpeedConfig, task_config
-from gear_env.params import GearParams
-from gear_env.tasks import DEMAND_SETTINGS, TASK_SETTINGS, V1_SETTINGS, DutyCycle, PlantFamily
+from gear_env.envs.env import GearSpeedEnv
+from gear_env.envs.env_config import GearSpeedConfig, task_config
+from gear_env.envs.tasks import DEMAND_SETTINGS, TASK_SETTINGS, V1_SETTINGS, DutyCycle, PlantFamily
+from gear_env.sim.params import GearParams
 
 SHORT = {"max_steps": 6, "periods_per_step": 8, "warmup_periods": 16}  # cheap episodes for the tests
 
@@ -80,7 +80,7 @@ def test_demand_episode_is_seeded_and_hidden():
     assert fam.load[0] <= e1.factors["load"] <= fam.load[1] and fam.e_m1[0] <= e1.factors["e_m1"] <= fam.e_m1[1]
     # the observation holds the sensors, the demand and the memory of past sensors (memory_steps > 0), never
     # the plant
-    from gear_env.env_core import FULL_STATE_NAMES, SENSOR_NAMES
+    from gear_env.envs.env_core import FULL_STATE_NAMES, SENSOR_NAMES
 
     memory = ("trouble_omega", "trouble_recency", "prev_force_rms", "prev_contact_loss")
     assert env.observation_names == (*SENSOR_NAMES, "demand", *memory)

@@ -11,7 +11,7 @@ import pytest
 
 from agents.episode_oracle import EpisodePlanner
 from agents.hyperparams import load_zoo_entry
-from gear_env.env_config import task_config
+from gear_env.envs.env_config import task_config
 
 
 def _planner(cost_rows, demand, **settings):

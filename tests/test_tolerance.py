@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from gear_env import GearParams, GearSimulator, simulate
-from gear_env.reference import reference_poincare
+from gear_env.sim.reference import reference_poincare
 
 TOL_FACTOR = 3.0
 """Documented bound (docs/SIMULATOR.md): over 10 mesh periods from a common state the Poincare
@@ -53,8 +53,8 @@ def test_simulate_with_tol_records_with_the_step_count_that_met_it():
 def test_located_driver_equals_the_fixed_step_driver_without_contact_changes():
     """kernels.integrate_located takes the same steps as integrate_stats when no contact change
     occurs (omega 0.8: permanent contact), bit for bit, and splits steps when they occur (1.5)."""
-    from gear_env import kernels as K
-    from gear_env.params import model_code
+    from gear_env.sim import kernels as K
+    from gear_env.sim.params import model_code
 
     c = K.readonly(np.ascontiguousarray(GearParams().consts))
     for omega, same in ((0.8, True), (1.5, False)):

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from gear_env import GearParams, GearSimulator, simulate
-from gear_env import kernels as K
-from gear_env.integration import integrate
-from gear_env.linear import backlash_gradient, matrices, mesh_vector
-from gear_env.params import C_NT, FORCE_GRADIENT, LAW_INVOLUTE, kernel_code, model_code, refuse_extensions
-from gear_env.reference import RefConsts, reference_initial_state, reference_poincare, rhs
-from gear_env.simulator import default_initial_state, simulate_batch
+from gear_env.sim import kernels as K
+from gear_env.sim.integration import integrate
+from gear_env.sim.linear import backlash_gradient, matrices, mesh_vector
+from gear_env.sim.params import C_NT, FORCE_GRADIENT, LAW_INVOLUTE, kernel_code, model_code, refuse_extensions
+from gear_env.sim.reference import RefConsts, reference_initial_state, reference_poincare, rhs
+from gear_env.sim.simulator import default_initial_state, simulate_batch
 
 TORQUE = dict(T_p1=10.0, T_g1=8.0, phi_Tp=0.4, phi_Tg=-1.1, torque_order=3.0)
 
@@ -93,7 +93,7 @@ def test_torque_term_against_the_exact_linear_response():
 
 def test_torque_and_law_agree_with_solve_ivp():
     """The dynamic model with both torques fluctuating and the involute law, against the independent integrator
-    of gear_env/reference.py (its own statement of the load and of the law), through contact loss."""
+    of gear_env/sim/reference.py (its own statement of the load and of the law), through contact loss."""
     p = GearParams(backlash_law="involute", **TORQUE)
     sim = GearSimulator(p, "dynamic", None, 2.8)
     st = sim.advance(12)
@@ -163,7 +163,7 @@ def test_torque_phase_carries_across_intervals():
 def test_involute_law_against_its_formula():
     """B_d = B_c + R (inv alpha_d - inv alpha0) at random centre positions; its gradient by central
     differences; to first order in the centre separation eps, B_d - B_c = eps sin(alpha0), where the
-    paper's law has tan(alpha0) (the linearisation in gear_env.linear follows the law)."""
+    paper's law has tan(alpha0) (the linearisation in gear_env.sim.linear follows the law)."""
     p = GearParams(backlash_law="involute")
     c = p.consts
     b0 = p.length_scale
@@ -238,7 +238,7 @@ def test_bad_inputs_name_the_field():
 def test_entry_points_that_cannot_carry_them_refuse():
     from gear_env.analysis.continuation import OrbitMap
     from gear_env.analysis.floquet import PeriodMap
-    from gear_env.env_config import GearSpeedConfig
+    from gear_env.envs.env_config import GearSpeedConfig
 
     for p, word in (
         (GearParams(T_p1=1.0), "torque fluctuation"),

@@ -11,7 +11,7 @@ import pytest
 from agents.ppo import TrainOptions, train
 from agents.registry import resolve_policy
 from agents.runs import RunFolder, RunFolderError
-from gear_env.env_config import GearSpeedConfig
+from gear_env.envs.env_config import GearSpeedConfig
 from gear_env.evaluation import evaluate_policies
 
 # a cheap environment (coarse integration, short steps/episodes) and a tiny PPO: ~1 s per run

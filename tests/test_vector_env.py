@@ -10,12 +10,12 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import gear_env  # noqa: F401
-from gear_env import batch_kernels as BK
-from gear_env import kernels as K
-from gear_env.env import GearSpeedEnv
-from gear_env.env_core import INFO_KEYS
-from gear_env.sb3_adapter import SB3VecEnvAdapter
-from gear_env.vector_env import GearSpeedVectorEnv
+from gear_env.envs.env import GearSpeedEnv
+from gear_env.envs.env_core import INFO_KEYS
+from gear_env.envs.sb3_adapter import SB3VecEnvAdapter
+from gear_env.envs.vector_env import GearSpeedVectorEnv
+from gear_env.sim import batch_kernels as BK
+from gear_env.sim import kernels as K
 
 FAST = dict(max_steps=5, periods_per_step=8, warmup_periods=16)
 N = 3

@@ -1,5 +1,5 @@
 """Verification against known answers: linear natural frequencies (MODEL.md sec. 5), the linear
-frequency response in full contact, the independent solve_ivp reference (gear_env.reference) in
+frequency response in full contact, the independent solve_ivp reference (gear_env.sim.reference) in
 periodic regimes, and second-order convergence on impacting motion."""
 
 import math
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from gear_env import GearParams, GearSimulator, default_steps_per_period
-from gear_env.linear import linear_frequency_response, matrices, natural_frequencies
-from gear_env.reference import reference_initial_state, reference_poincare
+from gear_env.sim.linear import linear_frequency_response, matrices, natural_frequencies
+from gear_env.sim.reference import reference_initial_state, reference_poincare
 
 
 def test_natural_frequencies_constant_model():

@@ -37,7 +37,7 @@ def test_changelog_newest_release_is_the_package_version():
 
 
 def test_changelog_links_each_environment_ids_version_history():
-    from gear_env.tasks import TASK_SETTINGS
+    from gear_env.envs.tasks import TASK_SETTINGS
 
     text = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
     for env_id in TASK_SETTINGS:

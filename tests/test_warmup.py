@@ -10,7 +10,7 @@ import sys
 import pytest
 
 from gear_env.cli import main
-from gear_env.warmup import GROUPS, check_groups, compile_kernels
+from gear_env.envs.warmup import GROUPS, check_groups, compile_kernels
 
 
 def test_list_and_bad_input(capsys):
@@ -30,7 +30,7 @@ def test_list_and_bad_input(capsys):
 
 def test_a_failing_group_is_reported(monkeypatch):
     """A worker that fails (here: an unknown group slipped past the check) is named with its error."""
-    monkeypatch.setattr("gear_env.warmup.check_groups", lambda groups: list(groups))
+    monkeypatch.setattr("gear_env.envs.warmup.check_groups", lambda groups: list(groups))
     with pytest.raises(RuntimeError, match=r"(?s)failed for nope \(exit 1\):.*unknown kernel group 'nope'"):
         compile_kernels(["nope"], jobs=1)
 
@@ -38,7 +38,7 @@ def test_a_failing_group_is_reported(monkeypatch):
 _CHILD = r"""
 import json
 from gear_env import GearSimulator, simulate_batch
-from gear_env import kernels as K, batch_kernels as BK
+from gear_env.sim import kernels as K, batch_kernels as BK
 GearSimulator(model="dynamic", omega=1.2).advance(2)
 GearSimulator(model="constant", omega=0.8).record(1)
 simulate_batch([0.9, 1.3], model="dynamic", periods=2, transient=1)

@@ -78,7 +78,7 @@ def make_ckpt(w):
     """A sweep checkpoint the CLI's QUICK sweep --out r.nc would resume (written by the package's sweep())."""
     r = py(
         w,
-        "import numpy as np\nfrom gear_env.analysis import sweep\nfrom gear_env.params import GearParams\n"
+        "import numpy as np\nfrom gear_env.analysis import sweep\nfrom gear_env.sim.params import GearParams\n"
         "sweep(np.linspace(1, 1.1, 2), model='dynamic', direction='forward', transient=4, periods=4, "
         "params=GearParams(), steps_per_period=None, lyapunov=False, progress=False, "
         "checkpoint='r.nc.ckpt.npz', keep_checkpoint=True)",

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from ..params import GearParams
-from ..simulator import check_count, check_omega, default_initial_state, simulate_batch
+from ..sim.params import GearParams
+from ..sim.simulator import check_count, check_omega, default_initial_state, simulate_batch
 from .classify import DEFAULT_TOL, classify_motion, same_orbit
 
 

@@ -47,8 +47,8 @@ class Checkpoint:
     def _load(self) -> None:
         """Read the file through the untrusted-file layer: members, dtypes and shapes checked before
         allocating, the fingerprint parsed with bounded JSON, every point's label and period checked."""
-        from .. import kernels as K
         from ..io import parse_json_text
+        from ..sim import kernels as K
         from ..untrusted import ArraySpec, read_npz, refuse
 
         p = str(self.path)

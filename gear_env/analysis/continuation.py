@@ -48,11 +48,11 @@ from typing import Any
 
 import numpy as np
 
-from .. import kernels as K
 from .._numba_cache import announce_compile
 from ..errors import SimulationDivergedError
-from ..params import GearParams, model_code, refuse_extensions
-from ..simulator import NEWTON_MAX_ITER, NEWTON_TOL, GearSimulator, check_omega, default_steps_per_period
+from ..sim import kernels as K
+from ..sim.params import GearParams, model_code, refuse_extensions
+from ..sim.simulator import NEWTON_MAX_ITER, NEWTON_TOL, GearSimulator, check_omega, default_steps_per_period
 from . import tangent as TG
 
 TANGENT_COMPILE_TIME = "4 min on an idle 2-core machine (one kernel holds all three tangent modes)"

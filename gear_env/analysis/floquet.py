@@ -32,11 +32,11 @@ from typing import Any
 
 import numpy as np
 
-from .. import kernels as K
 from ..errors import SimulationDivergedError
-from ..integration import integrate
-from ..params import GearParams, model_code, refuse_extensions
-from ..simulator import (
+from ..sim import kernels as K
+from ..sim.integration import integrate
+from ..sim.params import GearParams, model_code, refuse_extensions
+from ..sim.simulator import (
     GearSimulator,
     check_count,
     check_omega,
@@ -289,7 +289,7 @@ def linear_multipliers(omega: float, model: str = "constant", params: GearParams
     w = check_omega(omega)
     p = params if params is not None else GearParams()
     c = p.consts
-    from ..params import C_ALPHA0, C_EPS_G, C_EPS_P, C_SIG_G, C_SIG_P, C_XI_BG, C_XI_BP, C_XI_M
+    from ..sim.params import C_ALPHA0, C_EPS_G, C_EPS_P, C_SIG_G, C_SIG_P, C_XI_BG, C_XI_BP, C_XI_M
 
     a0 = c[C_ALPHA0]
     s, co = math.sin(a0), math.cos(a0)

@@ -20,10 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from .. import kernels as K
 from ..errors import SimulationDivergedError
-from ..params import GearParams, model_code, refuse_extensions
-from ..simulator import NEWTON_MAX_ITER, NEWTON_TOL, _check_state, check_count, check_omega, resolve_steps
+from ..sim import kernels as K
+from ..sim.params import GearParams, model_code, refuse_extensions
+from ..sim.simulator import NEWTON_MAX_ITER, NEWTON_TOL, _check_state, check_count, check_omega, resolve_steps
 
 DEFAULT_D0 = 1e-8
 """Default initial separation (b0 units): large against the Newton tolerance, small against b0."""
@@ -70,7 +70,7 @@ def largest_lyapunov(
     Raises:
         ValueError: invalid arguments; SimulationDivergedError: the trajectory blew up.
     """
-    from ..simulator import GearSimulator
+    from ..sim.simulator import GearSimulator
 
     w = check_omega(omega)
     n = check_count(periods, "periods", 2)

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from .. import kernels as K
+from ..sim import kernels as K
 
 
 @K.kernel
@@ -21,7 +21,7 @@ def lyapunov_pair(x, omega, periods, n_steps, c, dynamic, d0, u, skip, pc, st_al
     the unit vector ``u`` by ``periods`` mesh periods at constant ``omega``, renormalising the copy
     to ``d0`` along the current separation after every period.
 
-    Each period of each copy is one :func:`gear_env.kernels.integrate_stats_tab` call from phase 0
+    Each period of each copy is one :func:`gear_env.sim.kernels.integrate_stats_tab` call from phase 0
     (consistent start acceleration), as a per-period ``integrate_stats`` call would do, with the
     excitation table computed once. Writes the reference's Poincare sample and interval
     statistics of period p into ``pc[p]`` (N_PC) and ``st_all[p]`` (N_STATS). Periods before

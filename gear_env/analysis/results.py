@@ -22,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from .. import kernels as K
 from ..errors import FileFormatError
-from ..params import GearParams
-from ..simulator import STATE_NAMES, stats_amplitude
+from ..sim import kernels as K
+from ..sim.params import GearParams
+from ..sim.simulator import STATE_NAMES, stats_amplitude
 from ..untrusted import refuse
 
 FORMAT_NAME = "gear-env-sweep"

@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from ..params import GearParams
-from ..simulator import GearSimulator, Trajectory, check_count, check_omega
+from ..sim.params import GearParams
+from ..sim.simulator import GearSimulator, Trajectory, check_count, check_omega
 
 
 @dataclass(frozen=True)

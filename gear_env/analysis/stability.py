@@ -34,8 +34,8 @@ import numpy as np
 
 from ..errors import SimulationDivergedError
 from ..io import atomic_write_text
-from ..params import GearParams, model_code
-from ..simulator import (
+from ..sim.params import GearParams, model_code
+from ..sim.simulator import (
     DEFAULT_STEPS_PER_PERIOD,
     MAX_NATURAL_STEP,
     GearSimulator,

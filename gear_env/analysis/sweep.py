@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from .. import kernels as K
-from ..params import GearParams, model_code, refuse_extensions
-from ..simulator import GearSimulator, check_count, check_omega, check_steps, default_steps_per_period
+from ..sim import kernels as K
+from ..sim.params import GearParams, model_code, refuse_extensions
+from ..sim.simulator import GearSimulator, check_count, check_omega, check_steps, default_steps_per_period
 from .checkpoint import Checkpoint
 from .classify import (
     DEFAULT_LYAP_TOL,
@@ -47,7 +47,7 @@ DIRECTIONS = ("forward", "reverse")
 def steps_for(omega: float, base: int | None = None, adaptive: bool = False) -> int:
     """Newmark steps per mesh period used at ``omega``.
 
-    ``base=None`` (the default): the simulator's :func:`~gear_env.simulator.default_steps_per_period`
+    ``base=None`` (the default): the simulator's :func:`~gear_env.sim.simulator.default_steps_per_period`
     (192, more below omega ~ 0.27). A fixed ``base`` is used as is, or with ``adaptive=True`` as
     ``max(base, ceil(base * 0.5 / omega))`` (the natural-time step ``h = 2 pi / (omega N)`` capped at
     its value at omega = 0.5).

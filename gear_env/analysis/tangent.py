@@ -35,7 +35,7 @@ import math
 
 import numpy as np
 
-from .. import kernels as K
+from ..sim import kernels as K
 
 # entries of the ``info`` vector written by :func:`tangent_map`
 INFO_U_MAX = 0

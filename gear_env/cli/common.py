@@ -76,7 +76,7 @@ def add_params_options(p: argparse.ArgumentParser) -> None:
         "--pair",
         metavar="JSON",
         default=None,
-        help="a spur pair's geometry as a JSON object of gear_env.geometry.SpurPair keywords (SI): "
+        help="a spur pair's geometry as a JSON object of gear_env.sim.geometry.SpurPair keywords (SI): "
         "k_m0, stiffness harmonics, masses and inertias from the teeth; --params fields override them",
     )
     p.add_argument(
@@ -88,9 +88,9 @@ def add_params_options(p: argparse.ArgumentParser) -> None:
 
 
 def params_from_args(args: argparse.Namespace) -> Any:
-    """The :class:`~gear_env.params.GearParams` the parameter options describe (a ValueError names the field)."""
+    """The :class:`~gear_env.sim.params.GearParams` the parameter options describe (a ValueError names the field)."""
     from ..io import read_json
-    from ..params import GearParams
+    from ..sim.params import GearParams
 
     fields: dict[str, Any] = {}
     if getattr(args, "params", None):
@@ -102,7 +102,7 @@ def params_from_args(args: argparse.Namespace) -> Any:
             raise ValueError("--kappa cannot be combined with a stiffness series (--pair or stiffness_harmonics)")
         fields["kappa"] = args.kappa
     if getattr(args, "pair", None):
-        from ..geometry import SpurPair
+        from ..sim.geometry import SpurPair
 
         kw = read_json(args.pair, "--pair")
         if not isinstance(kw, dict):
@@ -195,14 +195,14 @@ def check_memory(nbytes: float, what: str, fraction: float = 0.8) -> None:
 
 def simulate_bytes(periods: int, transient: int, steps_per_period: int) -> float:
     """Estimated bytes a ``simulate`` run allocates: the recorded time series plus the Poincare rows."""
-    from ..kernels import N_PC, N_REC
+    from ..sim.kernels import N_PC, N_REC
 
     return 8.0 * ((periods * steps_per_period + 1) * N_REC + (periods + transient) * N_PC)
 
 
 def sweep_bytes(points: int, periods: int) -> float:
     """Estimated bytes of a sweep's results: per point its Poincare rows, statistics and state."""
-    from ..kernels import N_PC, N_STATS
+    from ..sim.kernels import N_PC, N_STATS
 
     return 8.0 * points * (4 * periods * N_PC + N_STATS + 64)
 
@@ -231,7 +231,7 @@ DEFAULT_ENV = "GearSpeed-v1"
 
 def add_env_options(p: argparse.ArgumentParser) -> None:
     """``--env`` (default: the run folders' own task, else :data:`DEFAULT_ENV`) and ``--allow-other-env``."""
-    from ..tasks import TASK_SETTINGS
+    from ..envs.tasks import TASK_SETTINGS
 
     ids = tuple(TASK_SETTINGS)
     p.add_argument(

@@ -6,7 +6,7 @@ import argparse
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    from ..warmup import GROUPS
+    from ..envs.warmup import GROUPS
 
     p = sub.add_parser(
         "compile",
@@ -27,7 +27,7 @@ def run(args: argparse.Namespace) -> int:
     import time
 
     from .. import _numba_cache
-    from ..warmup import GROUPS, check_groups, compile_kernels, default_jobs
+    from ..envs.warmup import GROUPS, check_groups, compile_kernels, default_jobs
 
     if args.list:
         for k, v in GROUPS.items():

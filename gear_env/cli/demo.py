@@ -36,10 +36,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..analysis import classify_motion, largest_lyapunov
     from ..analysis.stability import default_stability_map
-    from ..params import GearParams
     from ..plots import plot_trajectory, save_figure
     from ..plots.analysis import plot_stability_map
-    from ..simulator import GearSimulator
+    from ..sim.params import GearParams
+    from ..sim.simulator import GearSimulator
 
     t0 = time.time()
     os.makedirs(args.out, exist_ok=True)
@@ -118,7 +118,7 @@ def task_demo(step: int, env_id: str, episodes: int, out: str) -> dict[str, tupl
     """Steps 3 and 4: the shipped policy of ``env_id`` against the scripted policies, the best fixed speed and
     the oracle on the same ``episodes`` seeds; prints the table (with % of the oracle, and on the Demand task
     the cost and the demand delivered), writes ``out/<env_id>.md`` and returns {label: (% of oracle, CI)}."""
-    from ..env_config import task_config
+    from ..envs.env_config import task_config
     from ..evaluation import evaluate_policies
     from ..io import atomic_write_text
 
@@ -163,7 +163,7 @@ def task_demo(step: int, env_id: str, episodes: int, out: str) -> dict[str, tupl
 def paired_percent(report: Any, name: str, reference: str = "oracle") -> tuple[float, float]:
     """Mean return of ``name`` in % of the reference's, and the 95 % half-width of the paired per-seed
     differences in the same units (the spread of the starts cancels: both ran the same seeds)."""
-    from ..report import _ci95
+    from ..evaluation.report import _ci95
 
     ret = np.array([e.ret for e in report.episodes[name]])
     ref = np.array([e.ret for e in report.episodes[reference]])
@@ -190,7 +190,7 @@ def demand_demo(episodes: int = 1) -> dict[str, dict[str, tuple[float, float]]]:
     apart, so the best one is the single speed with the best mean return over both. Returns
     {policy: {plant label: (mean return, mean settled omega)}}; prints the table.
     """
-    from ..env_config import task_config
+    from ..envs.env_config import task_config
     from ..evaluation import evaluate_policies
 
     print(

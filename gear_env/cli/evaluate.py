@@ -8,7 +8,7 @@ import json
 import sys
 import time
 
-from ..tasks import TASK_SETTINGS
+from ..envs.tasks import TASK_SETTINGS
 from .common import add_env_options, choose_env, int_range, writes
 
 TASK_IDS = tuple(TASK_SETTINGS)
@@ -68,10 +68,10 @@ def run(args: argparse.Namespace) -> int:
         "(a fresh numba cache first compiles for 10-30 s, longer under load)",
         flush=True,
     )
-    from ..env_config import task_config
+    from ..envs.env_config import task_config
+    from ..envs.schedules import SpeedSchedule
     from ..evaluation import evaluate_policies
     from ..io import atomic_write_text, read_json
-    from ..schedules import SpeedSchedule
 
     data = None
     if args.config:

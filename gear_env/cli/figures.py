@@ -101,10 +101,10 @@ def generate_figures(
     from ..analysis.spectrum import waterfall
     from ..analysis.stability import stability_map
     from ..io import atomic_write_text
-    from ..params import GearParams
     from ..plots import analysis as pa
     from ..plots.common import save_figure
-    from ..simulator import simulate
+    from ..sim.params import GearParams
+    from ..sim.simulator import simulate
 
     s = settings or FigureSettings()
     p = params if params is not None else GearParams()
@@ -197,7 +197,7 @@ def _regime_runs(omega: Any, regime: Any) -> list[list[Any]]:
 
 @writes(folders=("out",))
 def run(args: argparse.Namespace) -> int:
-    from ..params import GearParams
+    from ..sim.params import GearParams
 
     s = FigureSettings.quick() if args.quick else FigureSettings()
     if args.points is not None:

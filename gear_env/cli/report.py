@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     from agents.registry import resolve_policy
     from agents.report import compare, plot, to_markdown
 
-    from ..env_config import task_config
+    from ..envs.env_config import task_config
     from ..io import atomic_write_text
 
     torch.set_num_threads(1)

@@ -33,7 +33,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 @writes(outputs=("json", "plot"), inputs=("params", "pair"))
 def run(args: argparse.Namespace) -> int:
     from ..analysis import classify_motion
-    from ..simulator import default_steps_per_period, simulate
+    from ..sim.simulator import default_steps_per_period, simulate
     from .common import simulate_bytes
 
     params = params_from_args(args)

@@ -1,5 +1,5 @@
 """``python -m gear_env.evaluation`` (also ``python -m gear_env.cli.steady``): print the steady
-reward of constant speeds (:func:`gear_env.steady_map.steady_reward_map`) for some models and
+reward of constant speeds (:func:`gear_env.envs.steady_map.steady_reward_map`) for some models and
 step counts, and optionally write it as JSON and as a figure."""
 
 from __future__ import annotations
@@ -71,8 +71,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..env_config import GearSpeedConfig
-    from ..steady_map import steady_reward_map
+    from ..envs.env_config import GearSpeedConfig
+    from ..envs.steady_map import steady_reward_map
 
     cfg = GearSpeedConfig()
     w = np.round(np.arange(cfg.omega_min, cfg.omega_max + 1e-9, args.step), 6)

@@ -11,7 +11,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from ..tasks import TASK_SETTINGS
+from ..envs.tasks import TASK_SETTINGS
 from .common import int_range
 
 GEAR_ENV_ID = "GearSpeed-v1"  # the default task (gear_env.cli.common.DEFAULT_ENV)

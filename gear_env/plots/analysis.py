@@ -19,11 +19,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from .. import kernels as K
+from ..sim import kernels as K
 from .common import B0, LYAPUNOV, OMEGA, S_DEF, new_figure, plain_log_ticks
 
 if TYPE_CHECKING:  # annotations only: the plots take a Trajectory, they do not simulate
-    from ..simulator import Trajectory
+    from ..sim.simulator import Trajectory
 
 MODEL_STYLE = {
     "constant": dict(color="tab:blue", label="constant backlash"),

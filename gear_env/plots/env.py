@@ -31,7 +31,7 @@ BAND_LABELS = {
 
 
 def draw_bands(ax: Any, bands: Any, horizontal: bool = True) -> None:
-    """Shade the regime bands (a :class:`gear_env.bands.RegimeBands`) across omega.
+    """Shade the regime bands (a :class:`gear_env.envs.bands.RegimeBands`) across omega.
 
     ``horizontal=True`` shades horizontal strips (omega on the y axis). ``bands=None`` draws nothing.
     """
@@ -52,13 +52,13 @@ def draw_bands(ax: Any, bands: Any, horizontal: bool = True) -> None:
 class EnvFrame:
     """Draws the env frame: omega history over the regime bands, the Poincare window, contact state.
 
-    It draws what it is given; :class:`gear_env.render.EnvRenderer` (what ``env.render()`` uses)
+    It draws what it is given; :class:`gear_env.envs.render.EnvRenderer` (what ``env.render()`` uses)
     fetches the bands of the environment's configuration and hands them over.
 
     Args:
         config: the env's settings (an object with ``omega_min``, ``omega_max``, ``max_steps``,
-            ``periods_per_step``, e.g. :class:`gear_env.env_config.GearSpeedConfig`).
-        bands: regime bands to shade (a :class:`gear_env.bands.RegimeBands`), or None for none.
+            ``periods_per_step``, e.g. :class:`gear_env.envs.env_config.GearSpeedConfig`).
+        bands: regime bands to shade (a :class:`gear_env.envs.bands.RegimeBands`), or None for none.
         human: show the figure in a matplotlib window (pyplot) instead of off-screen.
     """
 
@@ -138,8 +138,8 @@ def plot_evaluation(report: Any, bands: Any):
     command (a ramp may never meet its own start); the figure says so.
 
     Args:
-        report: :class:`gear_env.report.EvaluationReport`.
-        bands: :class:`gear_env.bands.RegimeBands`, or None for no shading.
+        report: :class:`gear_env.evaluation.report.EvaluationReport`.
+        bands: :class:`gear_env.envs.bands.RegimeBands`, or None for no shading.
 
     Returns:
         a matplotlib Figure (save it with :func:`gear_env.plots.save_figure`).
@@ -185,7 +185,7 @@ def plot_steady_reward(maps: dict[str, Any]):
     """Steady reward per step against constant omega, one curve per map, main penalties below.
 
     Args:
-        maps: label -> :class:`gear_env.steady_map.SteadyRewardMap`.
+        maps: label -> :class:`gear_env.envs.steady_map.SteadyRewardMap`.
     """
     from matplotlib.lines import Line2D
 

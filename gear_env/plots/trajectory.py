@@ -10,7 +10,7 @@ from matplotlib.figure import Figure
 from .common import B0, OMEGA, S_DEF, new_figure
 
 if TYPE_CHECKING:  # annotations only: the plots take a Trajectory, they do not simulate
-    from ..simulator import Trajectory
+    from ..sim.simulator import Trajectory
 
 
 def plot_trajectory(traj: Trajectory, channel: str = "delta", last_periods: int = 20) -> Figure:
@@ -21,7 +21,7 @@ def plot_trajectory(traj: Trajectory, channel: str = "delta", last_periods: int 
     history shows the contact edges +-B_d (drive side above, back side below).
 
     Args:
-        traj: a recorded :class:`~gear_env.simulator.Trajectory`.
+        traj: a recorded :class:`~gear_env.sim.simulator.Trajectory`.
         channel: ``"delta"`` (dynamic transmission error, b0 units) or ``"U"``.
         last_periods: mesh periods shown in the time history.
     """

@@ -1,7 +1,7 @@
 """Independent reference integrator of MODEL.md sec. 3b (pure Python/NumPy + SciPy ``solve_ivp``).
 
-Written from MODEL.md only (it shares no code with :mod:`gear_env.kernels`): the dimensionless
-constants are derived again from the SI fields of :class:`~gear_env.params.GearParams`, the
+Written from MODEL.md only (it shares no code with :mod:`gear_env.sim.kernels`): the dimensionless
+constants are derived again from the SI fields of :class:`~gear_env.sim.params.GearParams`, the
 right-hand side is the first-order system of the 10 states plus the mesh phase, in natural time
 s = omega_n t, and the initial state (A10) is computed again here.
 

@@ -1,5 +1,5 @@
 """The evaluation report: per policy a list of episode results, their means and 95 % confidence
-intervals, as Markdown, JSON and a figure. Built by :func:`gear_env.episodes.evaluate_policies`;
+intervals, as Markdown, JSON and a figure. Built by :func:`gear_env.evaluation.episodes.evaluate_policies`;
 also importable from :mod:`gear_env.evaluation`.
 """
 
@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from .bands import RegimeBands, regime_bands
-from .env_config import GearSpeedConfig
+from ..envs.bands import RegimeBands, regime_bands
+from ..envs.env_config import GearSpeedConfig
 
 
 @dataclass
@@ -178,11 +178,11 @@ class EvaluationReport:
 
     def plot(self, path: str | None = None, bands: RegimeBands | None = None):
         """omega(t) of the first episode of each policy over the regime bands, vibration below."""
-        from .plots.env import plot_evaluation
+        from ..plots.env import plot_evaluation
 
         fig = plot_evaluation(self, bands if bands is not None else regime_bands(self.config))
         if path is not None:
-            from .plots.common import save_figure
+            from ..plots.common import save_figure
 
             save_figure(fig, path)
         return fig

@@ -1,6 +1,6 @@
 """Spur gear geometry and the time-varying mesh stiffness computed from the teeth.
 
-The layer below :mod:`gear_env.params`: NumPy only, no kernel. A :class:`SpurGear` is a standard
+The layer below :mod:`gear_env.sim.params`: NumPy only, no kernel. A :class:`SpurGear` is a standard
 involute spur gear (rack-generated, full-fillet transition) on a solid body with a bore; a
 :class:`SpurPair` is two of them at the standard centre distance. From the geometry:
 

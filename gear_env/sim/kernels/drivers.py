@@ -1,7 +1,7 @@
 """Integration drivers: many Newmark steps per call, from one state (``integrate_record``,
 ``integrate_stats``) or a batch one system after the other (``integrate_stats_batch``).
 
-Python code reaches them through :func:`gear_env.integration.integrate`. The hot loops call no
+Python code reaches them through :func:`gear_env.sim.integration.integrate`. The hot loops call no
 function (every step helper is inlined); see :func:`integrate_stats_tab` for why.
 """
 
@@ -94,7 +94,7 @@ def start_step(x, a, phi0, w0, c, dynamic, work):
     """Consistent initial acceleration and mesh quantities at the start of an interval.
 
     Fills ``a``; returns (F, region, delta, bd) at the start; psi is left in work[0]. The
-    arithmetic of :func:`~gear_env.kernels.mesh.accel` (a = -r(0, q, v)) from the inline leaves,
+    arithmetic of :func:`~gear_env.sim.kernels.mesh.accel` (a = -r(0, q, v)) from the inline leaves,
     so that a driver's first call compiles no array-form kernel (accel, mesh_state, geometry).
     """
     k = step_consts_at(step_consts(c), phi0, c, torque_fluctuates_t(c))
@@ -253,7 +253,7 @@ def integrate_stats_lazy(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poi
     """:func:`integrate_stats` (same arguments and results, bit for bit) as a Python loop over
     :func:`stats_segment` and :func:`split_resume`: the step-splitting fallback, a second copy of
     the Newmark step (~5 s of first-call compile), is compiled only when a step first needs it.
-    The entry of :func:`gear_env.integration.integrate` for one system (simulator, single env).
+    The entry of :func:`gear_env.sim.integration.integrate` for one system (simulator, single env).
 
     It runs :func:`integrate_stats_tab`'s own Python source (``py_func``), so the loop is written once:
     in Python the two kernels it calls are numba dispatchers, each compiled on its first call."""

@@ -16,13 +16,13 @@ module                 holds
 
 Every name is re-exported here, so ``from gear_env import kernels as K; K.integrate_stats`` and
 ``K.ST_F_MAX`` work as before the split. Python code calls the drivers through
-:func:`gear_env.integration.integrate`. ``gear_env/reference.py`` is the readable (and
+:func:`gear_env.sim.integration.integrate`. ``gear_env/sim/reference.py`` is the readable (and
 independent) statement of the equations of ``kernels.mesh``.
 """
 
 from __future__ import annotations
 
-from numba import njit  # re-exported: gear_env.kernels exposed it before the split
+from numba import njit  # re-exported: gear_env.sim.kernels exposed it before the split
 
 from ..params import (
     C_A0,

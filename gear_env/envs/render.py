@@ -1,5 +1,5 @@
 """The environment's renderer: :class:`gear_env.plots.env.EnvFrame` over the regime bands of the
-environment's configuration (:func:`gear_env.bands.regime_bands`, computed once and cached).
+environment's configuration (:func:`gear_env.envs.bands.regime_bands`, computed once and cached).
 
 Kept out of :mod:`gear_env.plots` so that the plots take data and never run the environment or
 the analysis (docs/ARCHITECTURE.md).
@@ -9,15 +9,15 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..plots.env import EnvFrame
 from .bands import regime_bands
-from .plots.env import EnvFrame
 
 
 class EnvRenderer(EnvFrame):
     """The frame of ``env.render()``: omega history over the regime bands, Poincare window, contact.
 
     Args:
-        config: the env's :class:`~gear_env.env_config.GearSpeedConfig`.
+        config: the env's :class:`~gear_env.envs.env_config.GearSpeedConfig`.
         human: show the figure in a matplotlib window (pyplot) instead of off-screen.
     """
 

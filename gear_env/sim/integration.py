@@ -3,16 +3,16 @@
 Every caller that advances the gear model (the simulator, ``simulate_batch``, the environment
 core, the Floquet period map) goes through :func:`integrate`: it checks nothing the caller has
 not already validated, allocates the output arrays it is not given, passes the constants
-read-only (one compiled copy of each kernel, see :func:`gear_env.kernels.readonly`), picks the
+read-only (one compiled copy of each kernel, see :func:`gear_env.sim.kernels.readonly`), picks the
 kernel for the shape of the input and fills in the Newton settings:
 
 ==============================  =====================================================
 input                            kernel
 ==============================  =====================================================
-one state, ``record=True``       :func:`gear_env.kernels.integrate_record`
-one state                        :func:`gear_env.kernels.integrate_stats_lazy`
-a batch, ``simd=True``           :func:`gear_env.batch_kernels.integrate_stats_lanes`
-a batch, ``simd=False``          :func:`gear_env.kernels.integrate_stats_batch`
+one state, ``record=True``       :func:`gear_env.sim.kernels.integrate_record`
+one state                        :func:`gear_env.sim.kernels.integrate_stats_lazy`
+a batch, ``simd=True``           :func:`gear_env.sim.batch_kernels.integrate_stats_lanes`
+a batch, ``simd=False``          :func:`gear_env.sim.kernels.integrate_stats_batch`
 ==============================  =====================================================
 
 All four give the same numbers bit for bit. Kernels that call the integrators from compiled code
@@ -103,7 +103,7 @@ def integrate(
             than one after the other.
         max_iter, tol: Newton settings (the defaults are those of every published result).
         err_tol: one system, statistics only: integrate with the error per mesh period controlled
-            (:func:`gear_env.kernels.integrate_tol`, b0 units) instead of ``steps_per_period``
+            (:func:`gear_env.sim.kernels.integrate_tol`, b0 units) instead of ``steps_per_period``
             steps; ``n_start`` is the coarse run's first step count per mesh period.
 
     Returns:

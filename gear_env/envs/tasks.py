@@ -2,7 +2,7 @@
 
 ``GearSpeedDemand-v0`` draws, at every reset and from the environment's own ``np_random``:
 
-1. a gear pair from a :class:`PlantFamily` (factors on the nominal :class:`~gear_env.params.GearParams`:
+1. a gear pair from a :class:`PlantFamily` (factors on the nominal :class:`~gear_env.sim.params.GearParams`:
    the load torque and the transmission-error amplitude ``e_m1``);
 2. a load duty cycle from a :class:`DutyCycle` (the load torque is multiplied by a level that changes
    at random times during the episode);
@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from .params import C_FS, GearParams
+from ..sim.params import C_FS, GearParams
 
 
 def pair(owner: str, name: str, value: Any, lo: float, hi: float) -> tuple[float, float]:

@@ -13,9 +13,9 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
+from ..sim.params import MODELS, GearParams
 from . import env_terms as ET
 from .env_terms import ACTION_MODES, DEMAND_PRESETS, MIN_STATIC_MESH_FORCE, OBSERVATION_SETS
-from .params import MODELS, GearParams
 
 assert tuple(MODELS) == ET.BACKLASH_MODELS
 
@@ -23,7 +23,7 @@ _C = TypeVar("_C", bound="TableConfig")
 
 
 class TableConfig:
-    """Base of the configs whose fields come from a task's entries in :mod:`gear_env.env_terms`.
+    """Base of the configs whose fields come from a task's entries in :mod:`gear_env.envs.env_terms`.
 
     Subclasses are made with :func:`table_config`; validation runs field by field in table order
     (each setting's ``check`` sees the fields before it already normalised).
@@ -83,7 +83,7 @@ class TableConfig:
     @classmethod
     def from_json(cls: type[_C], path: str) -> _C:
         """Read a JSON object of settings (the ``--config`` file of the CLI)."""
-        from .io import read_json
+        from ..io import read_json
 
         data = read_json(path, "config file", max_bytes=1024 * 1024)  # size, depth, numbers bounded; BOM tolerated
         if not isinstance(data, dict):
@@ -93,7 +93,7 @@ class TableConfig:
 
 def table_config(task_id: str) -> Callable[[type[_C]], type[_C]]:
     """Class decorator: a frozen dataclass whose fields are the settings of ``task_id`` in
-    :mod:`gear_env.env_terms` (names, defaults and order from the table, checks in ``__post_init__``)."""
+    :mod:`gear_env.envs.env_terms` (names, defaults and order from the table, checks in ``__post_init__``)."""
 
     def make(cls: type[_C]) -> type[_C]:
         terms = ET.task(task_id)
@@ -112,10 +112,10 @@ def table_config(task_id: str) -> Callable[[type[_C]], type[_C]]:
 
 @table_config("GearSpeed-v0")
 class GearSpeedConfig(TableConfig):
-    """Settings of :class:`gear_env.env.GearSpeedEnv` (all keyword arguments of ``gym.make``).
+    """Settings of :class:`gear_env.envs.env.GearSpeedEnv` (all keyword arguments of ``gym.make``).
 
     The fields, their defaults, checks and meaning are the ``GearSpeed-v0`` entries of
-    :mod:`gear_env.env_terms` (``SETTINGS`` and the reward terms' weights); the table is in
+    :mod:`gear_env.envs.env_terms` (``SETTINGS`` and the reward terms' weights); the table is in
     docs/ENVIRONMENT.md. Every field has a default; :meth:`from_kwargs` (used by ``gym.make``)
     rejects unknown keys with the list of valid ones, and ``__post_init__`` rejects out-of-range
     values with a message naming the field and its allowed range.
@@ -174,7 +174,7 @@ class GearSpeedConfig(TableConfig):
     def demand_points(self) -> np.ndarray | None:
         """The demand profile as an (m, 2) array of (t in steps, omega), or None."""
         d = self.demand
-        if d is None or d == "random":  # "random": drawn per episode (gear_env.tasks.random_demand)
+        if d is None or d == "random":  # "random": drawn per episode (gear_env.envs.tasks.random_demand)
             return None
         T = float(self.max_steps)
         lo, hi = self.omega_min, self.omega_max

@@ -1,4 +1,4 @@
-"""Interval statistics of :func:`~gear_env.kernels.integrate_stats`: the accumulators a driver
+"""Interval statistics of :func:`~gear_env.sim.kernels.integrate_stats`: the accumulators a driver
 keeps in registers during its loop (``_acc_*``) and their merge into the ``ST_*`` vector."""
 
 from __future__ import annotations

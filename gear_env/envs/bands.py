@@ -3,7 +3,7 @@ period-1 orbit): the background the environment's figures draw a speed schedule 
 
 :func:`regime_bands` takes them from the shipped Floquet stability map
 (:mod:`gear_env.analysis.stability`) when the parameters are the defaults, else from constant-speed
-runs of :func:`gear_env.steady_map.steady_reward_map`. The plots receive the resulting
+runs of :func:`gear_env.envs.steady_map.steady_reward_map`. The plots receive the resulting
 :class:`RegimeBands` as data. Also importable from :mod:`gear_env.evaluation`.
 """
 
@@ -91,8 +91,8 @@ def _bands_from_stability_module(cfg: GearSpeedConfig) -> RegimeBands | None:
     """Bands from the shipped Floquet stability map (:mod:`gear_env.analysis.stability`) when the
     configuration uses the default parameters; None otherwise (never raises)."""
     try:
-        from .analysis.stability import default_stability_map
-        from .params import GearParams
+        from ..analysis.stability import default_stability_map
+        from ..sim.params import GearParams
 
         if cfg.params.to_dict() != GearParams().to_dict():
             return None

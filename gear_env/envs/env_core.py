@@ -21,13 +21,13 @@ from typing import Any
 
 import numpy as np
 
+from .._numba_cache import announce_compile
+from ..sim import kernels as K
+from ..sim.integration import TOL_N_START, integrate
+from ..sim.params import C_FS, GearParams, model_code, refuse_extensions
 from . import env_kernels as EK
 from . import env_terms as ET
-from . import kernels as K
-from ._numba_cache import announce_compile
 from .env_config import GearSpeedConfig
-from .integration import TOL_N_START, integrate
-from .params import C_FS, GearParams, model_code, refuse_extensions
 from .tasks import Episode, random_demand
 
 MAX_PERIOD = EK.MAX_PERIOD
@@ -36,7 +36,7 @@ LANES_MIN = 2
 """Batches of at least this many rows are advanced by ``batch_kernels.integrate_stats_lanes``."""
 
 TERMS = ET.task("GearSpeed-v0")
-"""The ``GearSpeed-v0`` entries of :mod:`gear_env.env_terms`."""
+"""The ``GearSpeed-v0`` entries of :mod:`gear_env.envs.env_terms`."""
 NOISY_SENSORS = ("force_rms", "force_peak", "translation_rms", "defect", "contact_loss")
 """Observation entries that ``sensor_noise`` perturbs (with their ``prev_`` memory copies)."""
 SENSOR_NAMES = tuple(o.name for o in TERMS.observations if o.when is None)
@@ -136,7 +136,7 @@ class GearSpeedCore:
         self._info_cols = None if np.array_equal(info_cols, np.arange(ET.N_INFO)) else info_cols
         self._info_items = tuple(terms.info_keys.items())
         self._demand_pts = cfg.demand_points()
-        # the episode scenario of every row (gear_env.tasks.Episode: plant, duty cycle, demand), and the
+        # the episode scenario of every row (gear_env.envs.tasks.Episode: plant, duty cycle, demand), and the
         # demand and load level of every step of it (tables only when they vary)
         self.episodes: list[Any] = [None] * n
         self._scenario = (

@@ -11,7 +11,7 @@ Everything an environment of the GearSpeed family exposes by name is one entry o
 * :data:`INFOS` - the other ``info`` columns (features, bookkeeping, episode totals);
 * :data:`OBSERVATIONS` - the observation features, in order, with their bounds.
 
-From these follow: the fields of the config dataclass (:func:`gear_env.env_config.table_config`), the
+From these follow: the fields of the config dataclass (:func:`gear_env.envs.env_config.table_config`), the
 column and slot numbers the numba kernels use (:data:`R`, :data:`C`, :data:`IX`, :data:`P`,
 :data:`F`: module-level namedtuples of ints, which numba freezes as constants), the ``info`` keys
 and their types, the index lists the kernel sums the reward and the cost over, the observation
@@ -235,7 +235,7 @@ BACKLASH_MODELS = ("constant", "dynamic")  # params.MODELS (checked by the confi
 
 
 def _params(label: str, v: Any, cfg: Any) -> Any:
-    from .params import C_FS, GearParams, refuse_extensions  # lazy: keeps this module free of numba
+    from ..sim.params import C_FS, GearParams, refuse_extensions  # lazy: keeps this module free of numba
 
     if v is None:
         v = GearParams()
@@ -463,13 +463,13 @@ SETTINGS: tuple[Setting, ...] = (
             'band of the "random" demand levels (uniform over it; None: [omega_min, omega_max])'),
     Setting("plant_family", None, _plant_family, "None, `PlantFamily` or dict",
             "per-episode gear pair: uniform factors on the load torques (`load`) and on e_m1 (`e_m1`), "
-            "see gear_env/tasks.py"),
+            "see gear_env/envs/tasks.py"),
     Setting("duty_cycle", None, _duty_cycle, "None, `DutyCycle` or dict",
             "load duty cycle: the load torques times a level from `levels`, changing every `segment_steps` "
             "steps (drawn per episode)"),
     Setting("wear", None, _wear, "None, `WearChange` or dict",
             "a change of the pair within the episode: at a step drawn from `at_step`, e_m1 times a factor drawn "
-            "from `factors` (see gear_env/tasks.py)"),
+            "from `factors` (see gear_env/envs/tasks.py)"),
     Setting("action_delay", 0, integer(0, 10), "[0, 10]",
             "actuator dead time [env steps]: the action of step t drives step t + action_delay (the drive "
             "holds the initial speed's set-point until then)"),
@@ -806,14 +806,14 @@ def update_docs(text: str) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m gear_env.env_terms FILE.md``: rewrite the generated tables of a Markdown file."""
+    """``python -m gear_env.envs.env_terms FILE.md``: rewrite the generated tables of a Markdown file."""
     args = list(sys.argv[1:] if argv is None else argv)
     if len(args) != 1:
-        print("usage: python -m gear_env.env_terms docs/ENVIRONMENT.md", file=sys.stderr)
+        print("usage: python -m gear_env.envs.env_terms docs/ENVIRONMENT.md", file=sys.stderr)
         return 2
     from pathlib import Path
 
-    from .io import atomic_write_text
+    from ..io import atomic_write_text
 
     path = Path(args[0])
     old = path.read_text(encoding="utf-8")

@@ -4,8 +4,8 @@
   compiled call per step, SIMD across them (``batch_kernels.integrate_stats_lanes``;
   ``gym.make_vec("GearSpeed-v0", num_envs=N)``).
   Sub-env ``i`` has its own random generator, seeded with ``seed + i`` by ``reset(seed=seed)``, so
-  it reproduces a single :class:`~gear_env.env.GearSpeedEnv` reset with ``seed + i`` exactly.
-* ``SB3VecEnvAdapter`` (in :mod:`gear_env.sb3_adapter`, which imports this module) - presents the
+  it reproduces a single :class:`~gear_env.envs.env.GearSpeedEnv` reset with ``seed + i`` exactly.
+* ``SB3VecEnvAdapter`` (in :mod:`gear_env.envs.sb3_adapter`, which imports this module) - presents the
   same batch engine to stable-baselines3 (which accepts only its own ``VecEnv``): auto-reset inside
   ``step_wait``, ``terminal_observation`` and ``TimeLimit.truncated`` in the infos.
 """
@@ -74,7 +74,7 @@ def _make_vec_time_limit() -> int | None:
 class GearSpeedVectorEnv(VectorEnv):
     """``num_envs`` independent GearSpeed environments stepped in one numba call.
 
-    Spaces, reward, info and episode rules are those of :class:`gear_env.env.GearSpeedEnv` (see its
+    Spaces, reward, info and episode rules are those of :class:`gear_env.envs.env.GearSpeedEnv` (see its
     docstring); observations are stacked (num_envs, n_obs), actions (num_envs, 1).
 
     Args:
@@ -132,7 +132,7 @@ class GearSpeedVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_names: tuple[str, ...] = self._core.observation_names
-        """Name of each entry of a sub-env's observation (:mod:`gear_env.env_terms` ``OBSERVATIONS``)."""
+        """Name of each entry of a sub-env's observation (:mod:`gear_env.envs.env_terms` ``OBSERVATIONS``)."""
         self.obs_names = list(self.observation_names)  # older name, kept
         self._rngs = _seed_generators(self.num_envs, None)
         self._autoreset = np.zeros(self.num_envs, bool)
@@ -269,11 +269,11 @@ class GearSpeedVectorEnv(VectorEnv):
 
 
 def __getattr__(name: str) -> Any:
-    """``SB3VecEnvAdapter`` lives in :mod:`gear_env.sb3_adapter` only (it builds on this module;
+    """``SB3VecEnvAdapter`` lives in :mod:`gear_env.envs.sb3_adapter` only (it builds on this module;
     a re-export here made an import cycle)."""
     if name == "SB3VecEnvAdapter":
         raise ImportError(
-            "SB3VecEnvAdapter is in gear_env.sb3_adapter: from gear_env.sb3_adapter import SB3VecEnvAdapter"
+            "SB3VecEnvAdapter is in gear_env.envs.sb3_adapter: from gear_env.envs.sb3_adapter import SB3VecEnvAdapter"
         )
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 

@@ -14,7 +14,7 @@ followed as fast as the motor allows.
 **Which task.** The action a schedule produces depends on the task (a change of omega on
 ``GearSpeed-v0``, a filtered speed reference on ``GearSpeed-v1``), so a schedule is bound to one:
 ``config=`` takes a task id (``"GearSpeed-v1"``), an environment made by ``gym.make`` (its own
-settings), a :class:`~gear_env.env_config.GearSpeedConfig` or a dict of settings. A schedule built
+settings), a :class:`~gear_env.envs.env_config.GearSpeedConfig` or a dict of settings. A schedule built
 without ``config=`` is unbound: :func:`gear_env.evaluation.evaluate_policies` (and ``gear-env
 evaluate``) bind it to the task they run, and :meth:`SpeedSchedule.predict` refuses to act until it is
 bound (:meth:`SpeedSchedule.bind`). A bound schedule run on a task whose actions mean something else
@@ -190,7 +190,7 @@ class SpeedSchedule:
         cfg = bound_cfg if bound_cfg is not None else GearSpeedConfig()
         p = os.fspath(path)
         where = f"schedule file {p!r}"
-        from .io import read_limited
+        from ..io import read_limited
 
         # a FIFO, directory, device or /proc file is refused by name (never waited on); size from stat first
         raw = read_limited(p, "schedule file", MAX_SCHEDULE_BYTES)
@@ -230,7 +230,7 @@ class SpeedSchedule:
 
     @staticmethod
     def _read_json(raw: bytes, where: str) -> tuple[list[Any], list[str]]:
-        from .io import parse_json_text
+        from ..io import parse_json_text
 
         data = parse_json_text(raw.decode("utf-8-sig"), where)
         if isinstance(data, Mapping):

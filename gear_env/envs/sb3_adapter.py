@@ -1,6 +1,6 @@
 """stable-baselines3 ``VecEnv`` adapter of the batched GearSpeed engine.
 
-Kept apart from :mod:`gear_env.vector_env` so that Gymnasium users do not import SB3 and torch.
+Kept apart from :mod:`gear_env.envs.vector_env` so that Gymnasium users do not import SB3 and torch.
 """
 
 from __future__ import annotations
@@ -12,12 +12,12 @@ from typing import Any
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
-from ._extras import require
+from .._extras import require
 from .env_config import GearSpeedConfig
 from .env_core import INFO_KEYS
 from .vector_env import GearSpeedVectorEnv
 
-VecEnv = require("stable_baselines3.common.vec_env", "gear_env.sb3_adapter (the SB3 VecEnv adapter)").VecEnv
+VecEnv = require("stable_baselines3.common.vec_env", "gear_env.envs.sb3_adapter (the SB3 VecEnv adapter)").VecEnv
 
 
 class SB3VecEnvAdapter(VecEnv):

@@ -8,7 +8,7 @@ no compiled code, up to ``jobs`` at a time: in a container image, before launchi
 ``SubprocVecEnv`` workers on a cluster node, or in CI. Processes started afterwards load the
 kernels from the cache in well under a second each.
 
-    python -m gear_env.warmup GROUP      # exercise one group in this process (what the workers run)
+    python -m gear_env.envs.warmup GROUP      # exercise one group in this process (what the workers run)
 """
 
 from __future__ import annotations
@@ -35,9 +35,9 @@ def _exercise(group: str) -> None:
     if group == "simulator":
         import gymnasium as gym
 
+        from ..analysis.lyapunov import largest_lyapunov
+        from ..sim.simulator import GearSimulator
         from . import env as _env  # noqa: F401  (registers GearSpeed-v0)
-        from .analysis.lyapunov import largest_lyapunov
-        from .simulator import GearSimulator
         from .vector_env import GearSpeedVectorEnv
 
         for model in ("dynamic", "constant"):
@@ -54,17 +54,17 @@ def _exercise(group: str) -> None:
     elif group == "tangent":
         import numpy as np
 
-        from . import kernels as K
-        from .analysis import tangent as TG
-        from .params import GearParams, model_code
-        from .simulator import NEWTON_MAX_ITER, NEWTON_TOL
+        from ..analysis import tangent as TG
+        from ..sim import kernels as K
+        from ..sim.params import GearParams, model_code
+        from ..sim.simulator import NEWTON_MAX_ITER, NEWTON_TOL
 
         x = np.zeros(K.NSTATE)
         jac, pc, info = np.empty((K.NSTATE, K.NSTATE)), np.empty((1, K.NSTATE)), np.empty(TG.N_INFO)
         c = GearParams().consts
         TG.tangent_map(x, 1.2, 1, 16, c, model_code("dynamic"), NEWTON_MAX_ITER, NEWTON_TOL, jac, pc, info, 0)
     elif group in ("simd-dynamic", "simd-constant"):
-        from .simulator import simulate_batch
+        from ..sim.simulator import simulate_batch
 
         simulate_batch([1.0, 1.2], model=group.split("-")[1], periods=1, transient=0, steps_per_period=16)
     else:
@@ -102,7 +102,7 @@ def compile_kernels(
     """Compile (or load from the disk cache) the kernels of ``groups`` (default: all), up to
     ``jobs`` worker processes at once (default: the CPUs available).
 
-    Each group runs in a fresh ``python -m gear_env.warmup GROUP`` process with this process's
+    Each group runs in a fresh ``python -m gear_env.envs.warmup GROUP`` process with this process's
     environment (so the same ``NUMBA_CACHE_DIR``). ``progress(group, seconds, done, total)`` is
     called as each finishes. Returns the wall-clock seconds per group. Raises RuntimeError
     naming the groups that failed, with the end of their error output; ValueError for an unknown
@@ -116,7 +116,7 @@ def compile_kernels(
     def run(group: str) -> tuple[str, float, subprocess.CompletedProcess]:
         t = time.perf_counter()
         cp = subprocess.run(
-            [sys.executable, "-m", "gear_env.warmup", group], capture_output=True, text=True, env=dict(os.environ)
+            [sys.executable, "-m", "gear_env.envs.warmup", group], capture_output=True, text=True, env=dict(os.environ)
         )
         return group, time.perf_counter() - t, cp
 

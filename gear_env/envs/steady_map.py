@@ -1,6 +1,6 @@
 """The steady reward map: the per-step reward (and every term) of holding each omega constant.
 
-:func:`steady_reward_map` runs the environment's core (:class:`gear_env.env_core.GearSpeedCore`)
+:func:`steady_reward_map` runs the environment's core (:class:`gear_env.envs.env_core.GearSpeedCore`)
 at constant speeds, all omegas in one batched kernel call per step: the landscape an oracle or a
 reader uses to judge a policy (docs/ENVIRONMENT.md). Also importable from :mod:`gear_env.evaluation`.
 """

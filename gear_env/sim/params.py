@@ -516,14 +516,14 @@ class GearParams:
 
     @classmethod
     def from_pair(cls, pair: Any, n_harmonics: int = 16, **changes: Any) -> GearParams:
-        """Parameters of a gear geometry (:class:`gear_env.geometry.SpurPair`): module, tooth
+        """Parameters of a gear geometry (:class:`gear_env.sim.geometry.SpurPair`): module, tooth
         numbers, pressure angle, the mean mesh stiffness ``k_m0`` and ``n_harmonics`` harmonics
         of the mesh stiffness from the teeth, the masses and polar inertias of the gear bodies;
         every other field from the defaults or ``changes`` (which also override these)."""
         from .geometry import SpurPair
 
         if not isinstance(pair, SpurPair):
-            raise ValueError(f"GearParams.from_pair takes a gear_env.geometry.SpurPair, got {type(pair).__name__}")
+            raise ValueError(f"GearParams.from_pair takes a gear_env.sim.geometry.SpurPair, got {type(pair).__name__}")
         if pair.crack is not None:
             raise ValueError(
                 "GearParams.from_pair: a cracked pair's stiffness repeats once per revolution, not per mesh "

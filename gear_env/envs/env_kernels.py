@@ -4,7 +4,7 @@ These run after the physics kernels (``kernels.integrate_stats``, ``batch_kernel
 replace ~100 small NumPy calls per step by one compiled call, so the Python overhead of a step is a
 few microseconds. Plain arrays in, arrays out.
 
-Every column and slot comes from the declarations in :mod:`gear_env.env_terms`: the info matrix ``I``
+Every column and slot comes from the declarations in :mod:`gear_env.envs.env_terms`: the info matrix ``I``
 has the columns ``INFO_COLUMNS`` (reward terms ``R.<name>``, cost terms ``C.<name>``, the other keys
 ``IX.<name>``), the settings vector ``S`` the slots ``P.<setting>``, the feature matrix ``Fm`` the
 columns ``F.<feature>`` (the observation gathers its entries from it). The formula of each reward
@@ -20,7 +20,7 @@ import math
 import numpy as np
 from numba import njit
 
-from . import kernels as K
+from ..sim import kernels as K
 from .env_terms import COST_COLUMN, FEATURE_CLIP, IX, N_INFO, STATE_CLIP, TROUBLE_CONTACT, F, P, R
 from .env_terms import INFO_COLUMNS as _INFO_COLUMNS
 from .env_terms import C as C  # the cost terms' columns, used by their formulas

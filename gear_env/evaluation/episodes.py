@@ -1,7 +1,7 @@
 """Roll out speed policies on ``GearSpeed-v0``: one episode (:func:`run_episode`) or several
 policies on the same episode seeds (:func:`evaluate_policies`, which returns a
-:class:`gear_env.report.EvaluationReport`). A policy is any object with SB3's
-``predict(obs, state, episode_start, deterministic)`` (SB3 models, :mod:`gear_env.schedules`).
+:class:`gear_env.evaluation.report.EvaluationReport`). A policy is any object with SB3's
+``predict(obs, state, episode_start, deterministic)`` (SB3 models, :mod:`gear_env.envs.schedules`).
 Also importable from :mod:`gear_env.evaluation`.
 """
 
@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from .env import GearSpeedEnv
-from .env_config import GearSpeedConfig
+from ..envs.env import GearSpeedEnv
+from ..envs.env_config import GearSpeedConfig
+from ..envs.schedules import SpeedSchedule
 from .report import EpisodeResult, EvaluationReport
-from .schedules import SpeedSchedule
 
 
 def _bind(policy: Any, config: GearSpeedConfig) -> Any:
@@ -31,7 +31,7 @@ def run_episode(
 ) -> EpisodeResult:
     """Roll out one episode of ``policy`` (``predict(obs, state, episode_start, deterministic)``);
     ``on_step``, if given, is called with each step's ``info`` (e.g. to sum reward terms). A
-    :class:`~gear_env.schedules.SpeedSchedule` is bound to ``env``'s task first (one bound to a task whose
+    :class:`~gear_env.envs.schedules.SpeedSchedule` is bound to ``env``'s task first (one bound to a task whose
     actions mean something else is refused with a ``ValueError``); so is any policy with a ``bind(config)``
     method (the scripted policies of ``agents``)."""
     policy = _bind(policy, env.unwrapped.config)

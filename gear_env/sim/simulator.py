@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
+from .._numba_cache import announce_compile
+from ..errors import SimulationDivergedError
 from . import kernels as K
-from ._numba_cache import announce_compile
-from .errors import SimulationDivergedError
 from .integration import NEWTON_MAX_ITER as NEWTON_MAX_ITER  # re-exported (older imports)
 from .integration import NEWTON_TOL as NEWTON_TOL
 from .integration import TOL_N_START, integrate
@@ -281,7 +281,7 @@ class GearSimulator:
         tol: error per mesh period (b0 units, all 10 states) instead of a step count: each mesh
             period of :meth:`advance` is integrated with contact changes located, with N and 2N
             steps, N chosen so that their estimated error is at most ``tol``, and Richardson-
-            extrapolated (:func:`gear_env.kernels.integrate_tol`; measured errors in
+            extrapolated (:func:`gear_env.sim.kernels.integrate_tol`; measured errors in
             docs/SIMULATOR.md). :meth:`record` then takes fixed steps, twice the last N. In
             [1e-8, 0.1]; not together with ``steps_per_period``. None (default): fixed steps.
     """
@@ -520,7 +520,7 @@ class Trajectory:
 
     def to_json(self, path: str) -> None:
         """Write :meth:`to_dict` to ``path`` atomically."""
-        from .io import atomic_write_text
+        from ..io import atomic_write_text
 
         atomic_write_text(path, json.dumps(self.to_dict(), indent=1))
 

@@ -1,7 +1,7 @@
 """``GearSpeed-v0``: schedule the meshing frequency of a spur gear-bearing pair.
 
-The physics, features and reward live in :mod:`gear_env.env_core` (shared with the vector env);
-the configuration in :mod:`gear_env.env_config`.
+The physics, features and reward live in :mod:`gear_env.envs.env_core` (shared with the vector env);
+the configuration in :mod:`gear_env.envs.env_config`.
 """
 
 from __future__ import annotations
@@ -141,7 +141,7 @@ class GearSpeedEnv(gym.Env):
 
     {rewards}
 
-    The terms, their weights and the info keys are declared in :mod:`gear_env.env_terms`. With the
+    The terms, their weights and the info keys are declared in :mod:`gear_env.envs.env_terms`. With the
     default model the best constant speed is omega ~1.2 (docs/ENVIRONMENT.md has the steady reward
     curve).
 
@@ -173,7 +173,7 @@ class GearSpeedEnv(gym.Env):
 
     ## Tasks
 
-    One class, four registered tasks (``gear_env.tasks.TASK_SETTINGS``; docs/ENVIRONMENT.md says why):
+    One class, four registered tasks (``gear_env.envs.tasks.TASK_SETTINGS``; docs/ENVIRONMENT.md says why):
     ``GearSpeed-v0`` (the defaults), ``GearSpeed-v1`` (speed-reference actions, 48-period control
     step, 0.1 per step, 100 steps), ``GearSpeedDemand-v0`` (as v1, plus a gear pair drawn per
     episode from a family, a load duty cycle and a random operator demand; throughput paid only up to
@@ -214,7 +214,7 @@ class GearSpeedEnv(gym.Env):
         self.observation_space = spaces.Box(lo, hi, dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
         self.observation_names: tuple[str, ...] = self._core.observation_names
-        """Name of each observation entry (the ``OBSERVATIONS`` entries of :mod:`gear_env.env_terms`)."""
+        """Name of each observation entry (the ``OBSERVATIONS`` entries of :mod:`gear_env.envs.env_terms`)."""
         self.obs_names = list(self.observation_names)  # older name, kept
         self._needs_reset = True
         self._wrapper_truncates = False  # set at reset (see _adopt_time_limit)
@@ -309,7 +309,7 @@ class GearSpeedEnv(gym.Env):
 
     @property
     def episode(self) -> Any:
-        """The current episode's scenario (:class:`gear_env.tasks.Episode`: plant, duty cycle, demand);
+        """The current episode's scenario (:class:`gear_env.envs.tasks.Episode`: plant, duty cycle, demand);
         what an oracle may know, never part of the observation."""
         return self._core.episodes[0]
 

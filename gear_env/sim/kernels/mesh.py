@@ -5,7 +5,7 @@ array forms.
 This is the one file to open to change a physics term. Every path takes its arithmetic from the
 leaves here, inlined by numba: the explicit accelerations (:func:`accel`), the Newton residual,
 its Jacobian and the dynamic model's Taylor update (``kernels.newmark``), the SIMD lanes
-(``gear_env.batch_kernels``, which run the same Newton iteration), the static equilibrium
+(``gear_env.sim.batch_kernels``, which run the same Newton iteration), the static equilibrium
 (:func:`static_equilibrium`) and the tangent map of continuation (``analysis/tangent.py``).
 
 =============================  ======================================================================
@@ -31,7 +31,7 @@ equations of motion            :func:`eom_residual_t`: r = a + C v + K q + w F -
 equations of motion (``K_IEP`` ... ``K_FS``) is named outside this file or the step constants are
 indexed by position, and checks every path against the reference on random states.
 
-``gear_env/reference.py`` states the same equations in readable NumPy (a right-hand side for
+``gear_env/sim/reference.py`` states the same equations in readable NumPy (a right-hand side for
 SciPy's ``solve_ivp``), written independently from MODEL.md; read it first. ``tests/test_kernels.py``
 compares the geometry and the accelerations term by term and ``tests/test_verification.py`` whole
 trajectories, so a change made here and not there (or the reverse) fails a test.
@@ -473,7 +473,7 @@ def friction_t(ce, se, k):
 # time): :func:`accel` is a = -r(0, q, v), the Newton iteration of ``kernels.newmark`` drives r to
 # zero with the Jacobian assembled from :func:`bearing_t`, :func:`deflection_gradient_t`,
 # :func:`force_gradient_t` and :func:`force_direction_t`, and :func:`static_equilibrium` solves
-# r(0, q, 0) = 0. The SIMD path (``gear_env.batch_kernels``) runs the same Newton iteration.
+# r(0, q, 0) = 0. The SIMD path (``gear_env.sim.batch_kernels``) runs the same Newton iteration.
 
 
 @kernel_inline
