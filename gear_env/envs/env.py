@@ -190,12 +190,12 @@ class GearSpeedEnv(gym.Env):
     * v1: the default task made well-posed for stock PPO: ``action_mode="target"`` (a speed reference,
       approached at the acceleration limit), ``periods_per_step=48`` and ``max_domega=0.1`` (the same
       acceleration as v0, half the decisions), ``max_steps=100`` (the same physical episode).
-      Revised on 2026-12-02 (same id; its issue was still open): ``reference_filter=0.1``, the drive's
-      first-order reference filter, with which stock PPO holds the window instead of cycling through it.
-      ``gym.make("GearSpeed-v1", reference_filter=1.0)`` is the 2026-12-01 version.
+      Revised in place in gear-env 0.4.0 (same id; its issue was still open): ``reference_filter=0.1``, the
+      drive's first-order reference filter, with which stock PPO holds the window instead of cycling through
+      it. ``gym.make("GearSpeed-v1", reference_filter=1.0)`` is the 0.3.0 task.
     * GearSpeedDemand-v0: the first version of the demand task (family: load x0.4-1.5, ``e_m1``
       x0.25-2; demand band ``demand_range=(1.2, 1.8)``; both settled before the first release).
-      Changed in place on 2026-12-02 (issue #16 open): ``reference_filter=0.1`` (was 1.0) and
+      Changed in place in gear-env 0.4.0 (issue #16 open): ``reference_filter=0.1`` (was 1.0) and
       ``memory_steps=20`` (was 0: the observation gains ``trouble_omega``, ``trouble_recency``,
       ``prev_force_rms``, ``prev_contact_loss``); the shipped policy was retrained on it.
     """
