@@ -58,9 +58,9 @@ class _AliasLoader(importlib.abc.Loader):
         self.target = target
 
     def create_module(self, spec):  # noqa: D102 - importlib protocol
-        self._module = importlib.import_module(self.target)
-        self._spec = self._module.__spec__
-        return self._module
+        module = importlib.import_module(self.target)
+        self._spec = module.__spec__  # importlib overwrites it with the alias spec before exec_module
+        return module
 
     def exec_module(self, module) -> None:  # noqa: D102 - importlib protocol
         module.__spec__ = self._spec  # importlib set the alias spec; the module keeps its own
