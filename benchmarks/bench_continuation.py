@@ -4,8 +4,9 @@ first period-doubling point.
     python benchmarks/bench_continuation.py [--repeats 3] [--omega-min 0.05] [--omega-max 3]
 
 Each run: ``continue_orbits(model, 0.05, 3.0, max_switches=1, max_period=2)`` (pseudo-arclength,
-bifurcation location by bisection, one period-2 branch). The models alternate within each repeat
-(constant, dynamic, constant, ...), so both see the same machine state; wall and CPU time
+bifurcation location by bisection, one period-2 branch), on the located map (the default) and on the
+unlocated one (``located=False``), interleaved A/B within each repeat, so the ratio of the two is
+taken under the same machine state. The models alternate (constant, dynamic, ...); wall and CPU time
 (``time.process_time``, one thread) are printed per run with the load average (``os.getloadavg``)
 before and after. numba compilation/loading is done once before the clock starts and printed
 separately. Target: < 10 s for both models on one core.
@@ -31,33 +32,41 @@ def main(argv: list[str] | None = None) -> int:
     print(f"machine: {platform.machine()}, {platform.processor() or 'cpu'}, Python {platform.python_version()}")
     t = time.perf_counter()
     for m in ("constant", "dynamic"):  # compile / load the kernels
-        continue_orbits(m, 1.0, 1.05, max_switches=0)
+        for located in (True, False):
+            continue_orbits(m, 1.0, 1.05, max_switches=0, located=located)
     print(f"numba compile/load (excluded): {time.perf_counter() - t:.1f} s")
-    rows = []
+    rows: dict[bool, list[tuple[float, float]]] = {True: [], False: []}
     for rep in range(args.repeats):
-        tot_w = tot_c = 0.0
-        load0 = os.getloadavg()[0]
-        for m in ("constant", "dynamic") if rep % 2 == 0 else ("dynamic", "constant"):
-            w0, c0 = time.perf_counter(), time.process_time()
-            r = continue_orbits(m, args.omega_min, args.omega_max, max_switches=1, max_period=2)
-            wall, cpu = time.perf_counter() - w0, time.process_time() - c0
-            tot_w += wall
-            tot_c += cpu
-            pts = sum(len(b.omega) for b in r.branches)
-            kinds = {}
-            for bp in r.bifurcations:
-                kinds[bp.type] = kinds.get(bp.type, 0) + 1
-            first_pd = next((bp.omega for bp in r.bifurcations if bp.type == "period-doubling"), float("nan"))
-            print(f"  repeat {rep} {m:8s}: wall {wall:5.2f} s, CPU {cpu:5.2f} s; {len(r.branches)} branches, "
+        for located in (True, False) if rep % 2 == 0 else (False, True):  # fmt: skip
+            tot_w = tot_c = 0.0
+            load0 = os.getloadavg()[0]
+            name = "located" if located else "unlocated"
+            for m in ("constant", "dynamic") if rep % 2 == 0 else ("dynamic", "constant"):
+                w0, c0 = time.perf_counter(), time.process_time()
+                r = continue_orbits(m, args.omega_min, args.omega_max, max_switches=1, max_period=2, located=located)
+                wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+                tot_w += wall
+                tot_c += cpu
+                pts = sum(len(b.omega) for b in r.branches)
+                kinds = {}
+                for bp in r.bifurcations:
+                    kinds[bp.type] = kinds.get(bp.type, 0) + 1
+                first_pd = next((bp.omega for bp in r.bifurcations if bp.type == "period-doubling"), float("nan"))
+                print(f"  repeat {rep} {name:9s} {m:8s}: wall {wall:5.2f} s, CPU {cpu:5.2f} s; "
+                      f"{len(r.branches)} branches, "
                   f"{pts} points, bifurcations {kinds}; first period doubling at {first_pd:.5f}; "
                   f"complete={r.complete}")  # fmt: skip
-        load1 = os.getloadavg()[0]
-        rows.append((tot_w, tot_c))
-        print(f"repeat {rep}: both models wall {tot_w:.2f} s, CPU {tot_c:.2f} s "
+            load1 = os.getloadavg()[0]
+            rows[located].append((tot_w, tot_c))
+            print(f"repeat {rep} {name}: both models wall {tot_w:.2f} s, CPU {tot_c:.2f} s "
               f"(load average {load0:.2f} -> {load1:.2f})")  # fmt: skip
-    ws = sorted(r[0] for r in rows)
-    cs = sorted(r[1] for r in rows)
-    print(f"both models: wall {ws[0]:.2f}-{ws[-1]:.2f} s, CPU {cs[0]:.2f}-{cs[-1]:.2f} s over {len(rows)} repeats")
+    for located in (True, False):
+        ws = sorted(r[0] for r in rows[located])
+        cs = sorted(r[1] for r in rows[located])
+        print(f"{'located' if located else 'unlocated'} map, both models: wall {ws[0]:.2f}-{ws[-1]:.2f} s, "
+              f"CPU {cs[0]:.2f}-{cs[-1]:.2f} s over {len(ws)} repeats")  # fmt: skip
+    ratios = sorted(a[1] / b[1] for a, b in zip(rows[True], rows[False], strict=True))
+    print(f"CPU time located / unlocated, per repeat: {ratios[0]:.2f}-{ratios[-1]:.2f}")
     return 0
 
 

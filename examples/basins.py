@@ -14,8 +14,10 @@ independent system stepped together with the others. A start counts as quiet if 
 amplitude (the paper's half peak-to-peak, b0 units) is below the geometric mean of the two
 attractors' amplitudes. With the defaults (AMD VM, ~13 s) 67 % of the starts within 0.0125 b0
 stay quiet, 33 % within 0.025 b0 and 9 % within 0.05 b0: just above the stability boundary of
-period-1 (Floquet, omega 2.409) the quiet motion's basin is thin, a band about +/-0.03 b0 wide in
-U and +/-0.008 in U', so a small disturbance sends the gears to the loud motion.
+period-1 the quiet motion's basin is thin, a band about +/-0.03 b0 wide in U and +/-0.008 in U',
+so a small disturbance sends the gears to the loud motion. (The Floquet map with located contact
+changes puts that boundary at 2.4131, so at 2.41 the period-1 orbit is in fact weakly unstable,
+|mu| = 1.00014: over the 3,000-period window the map shows a slow escape from a marginal orbit.)
 """
 
 from __future__ import annotations

@@ -64,18 +64,22 @@ def test_accel_jacobian_matches_finite_differences_of_the_kernel_force(model, ta
 def test_tangent_map_is_the_period_map_and_its_jacobian_matches_finite_differences(model):
     """Away from grazing (omega = 1.2) the exact Jacobian of the discrete map equals floquet.py's
     central differences to their accuracy, and the map itself is bit-identical."""
-    o = find_periodic_orbit(1.2, model)
-    pm = PeriodMap(1.2, model)
-    om = OrbitMap(model, None, 1)
-    y, jac, info, pc = om.tangent(o.state, 1.2, pm.steps)
-    assert np.array_equal(y, pm(o.state))
-    assert np.array_equal(pc[0], y)
-    assert np.max(np.abs(jac - o.monodromy)) < 1e-6
-    mu = np.linalg.eigvals(jac)
-    assert max(np.min(np.abs(mu - m)) for m in o.multipliers) < 1e-6
+    # the independent side: the simulator's fixed-step map and central differences of it
+    o = find_periodic_orbit(1.2, model, located=False)
+    pm = PeriodMap(1.2, model, located=False)
+    for om in (OrbitMap(model, None, 1), OrbitMap(model, None, 1, located=False)):
+        y, jac, info, pc = om.tangent(o.state, 1.2, pm.steps)
+        assert np.array_equal(y, pm(o.state))  # no contact change: located == unlocated, bit for bit
+        assert np.array_equal(pc[0], y)
+        assert np.max(np.abs(jac - o.monodromy)) < 1e-6
+        mu = np.linalg.eigvals(jac)
+        assert max(np.min(np.abs(mu - m)) for m in o.multipliers) < 1e-6
     # no contact change on this orbit: the crossing correction changes nothing
     _, jac_c, info_c, _ = om.tangent(o.state, 1.2, pm.steps, corrected=True)
     assert info[TG.INFO_SWITCHES] == 0 and np.array_equal(jac, jac_c)
+    # and the located Floquet map (the default) is the same orbit with the exact Jacobian
+    ol = find_periodic_orbit(1.2, model)
+    assert np.max(np.abs(ol.state - o.state)) < 1e-10 and np.max(np.abs(ol.monodromy - o.monodromy)) < 1e-6
 
 
 def test_linear_system_exact_discrete_and_continuous_multipliers():
@@ -121,26 +125,34 @@ def test_linear_system_exact_discrete_and_continuous_multipliers():
     assert errs[0] < 2e-3 and errs[1] < errs[0] / 10  # O(h^2): 16x for 4x the steps
 
 
-def test_crossing_corrected_multipliers_are_smooth_where_the_discrete_ones_jump():
-    """Constant model near the torus onset: the discrete map's own |mu|max jumps each time a contact
-    change moves to the next step (up to ~0.01 between omega 0.0025 apart); the crossing-corrected
-    multipliers grow smoothly and cross 1 once, within 0.006 of the packaged Floquet map's edge."""
-    om = OrbitMap("constant", None, 1)
+def test_located_and_corrected_multipliers_are_smooth_where_the_unlocated_ones_jump():
+    """Constant model near the torus onset: the unlocated discrete map's own |mu|max jumps each time a
+    contact change moves to the next step (up to ~0.01 between omega 0.0025 apart); the
+    crossing-corrected multipliers (unlocated map) and the located map's exact multipliers (the
+    default) grow smoothly, cross 1 once, within 0.006 of the packaged Floquet map's edge, and agree
+    with each other to O(h^2)."""
+    om_u = OrbitMap("constant", None, 1, located=False)
     ws = np.arange(1.62, 1.6576, 0.0025)
     x = find_periodic_orbit(ws[0], "constant").state
-    raw, cor = [], []
+    xl = x.copy()
+    raw, cor, loc = [], [], []
     for w in ws:
-        x, _, ok = orbit_at(w, "constant", x0=x)
+        x, _, ok = orbit_at(w, "constant", x0=x, located=False)
         assert ok
-        raw.append(abs(np.linalg.eigvals(om.tangent(x, w, om.steps(w))[1])).max())
-        cor.append(abs(np.linalg.eigvals(om.tangent(x, w, om.steps(w), corrected=True)[1])).max())
-    raw, cor = np.array(raw), np.array(cor)
+        raw.append(abs(np.linalg.eigvals(om_u.tangent(x, w, om_u.steps(w))[1])).max())
+        cor.append(abs(np.linalg.eigvals(om_u.tangent(x, w, om_u.steps(w), corrected=True)[1])).max())
+        xl, mu, ok = orbit_at(w, "constant", x0=xl)
+        assert ok
+        loc.append(abs(mu).max())
+    raw, cor, loc = np.array(raw), np.array(cor), np.array(loc)
     assert np.min(np.diff(raw)) < -0.004  # the sawtooth of the discrete map
-    d = np.diff(cor)
-    assert np.all(d > 0) and np.max(d) < 2 * np.min(d)  # smooth, monotone
-    k = int(np.nonzero(cor > 1)[0][0])
-    edge = ws[k - 1] + (ws[k] - ws[k - 1]) * (1 - cor[k - 1]) / (cor[k] - cor[k - 1])
-    assert abs(edge - 1.63698) < 0.006
+    for m in (cor, loc):
+        d = np.diff(m)
+        assert np.all(d > 0) and np.max(d) < 2 * np.min(d)  # smooth, monotone
+        k = int(np.nonzero(m > 1)[0][0])
+        edge = ws[k - 1] + (ws[k] - ws[k - 1]) * (1 - m[k - 1]) / (m[k] - m[k - 1])
+        assert abs(edge - 1.63698) < 0.006
+    assert np.max(np.abs(loc - cor)) < 2e-3
 
 
 # ------------------------------------------------------------------ known systems
@@ -270,7 +282,7 @@ def test_edges_agree_with_the_floquet_map(model):
     found = [(bp.omega, bp.type) for bp in r.bifurcations if bp.type in ("period-doubling", "neimark-sacker")]
     assert len(found) == len(edges)
     for (w, t), (w0, t0) in zip(sorted(found), sorted(edges), strict=True):
-        assert t == t0 and abs(w - w0) < 0.006
+        assert t == t0 and abs(w - w0) < 0.002  # both on the located map: bisection vs a 0.01 grid
 
 
 def test_bad_input_names_the_argument():

@@ -31,6 +31,22 @@ def test_continuation_json_layout_and_plot(tmp_path, capsys):
     assert all(t in ("fold", "period-doubling", "neimark-sacker", "grazing") for t in types)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "neimark-sacker" in capsys.readouterr().out
+    assert d["map"] == "located"
+
+
+def test_unlocated_option_runs_the_old_map(tmp_path, capsys):
+    """``--unlocated``: the map of 0.4.0 (recorded in the JSON); near the torus onset both maps put the
+    Neimark-Sacker point within 1e-4 of each other (no grazing there), but not bit for bit."""
+    pts = {}
+    for flag in ([], ["--unlocated"]):
+        out = tmp_path / f"c{len(flag)}.json"
+        rc = main(["continuation", "--model", "constant", "--omega-min", "1.5", "--omega-max", "1.8",
+                   "--json", str(out), "--quiet", *flag])  # fmt: skip
+        assert rc == 0
+        d = json.loads(out.read_text())
+        assert d["map"] == ("unlocated" if flag else "located")
+        pts[bool(flag)] = [x["omega"] for x in d["bifurcations"] if x["type"] == "neimark-sacker"][0]
+    assert abs(pts[True] - pts[False]) < 1e-4 and pts[True] != pts[False]
 
 
 @pytest.mark.parametrize(

@@ -31,6 +31,24 @@ def test_period1_orbit_equals_long_simulation(model):
     assert orbit.stable and orbit.bifurcation == "stable"
 
 
+# |mu|max of the grazing period-1 orbits by the event-located SciPy reference (DOP853, rtol 1e-11; Newton
+# with a central-difference Jacobian): ``python benchmarks/located_crossings.py --part grazing``
+GRAZING_REFERENCE = {("constant", 0.25): 0.38802, ("dynamic", 0.20): 0.26082}
+
+
+@pytest.mark.parametrize("case", sorted(GRAZING_REFERENCE))
+def test_grazing_multipliers_match_the_event_located_reference(case):
+    """At an orbit that touches a contact boundary the located map's exact multipliers (the default)
+    are within 0.005 of the reference at the default step count; the unlocated map's finite-difference
+    multipliers are not (0.02-0.03 off), which is what the located map fixes."""
+    model, w = case
+    ref = GRAZING_REFERENCE[case]
+    o = find_periodic_orbit(w, model, transient=600)
+    assert o.converged and abs(o.max_multiplier - ref) < 0.005
+    u = find_periodic_orbit(w, model, x0=o.state, located=False)
+    assert u.converged and abs(u.max_multiplier - ref) > 0.01
+
+
 @pytest.mark.parametrize("model", ["constant", "dynamic"])
 def test_linear_multipliers_match_exp_lambda_T(model):
     """kappa = 0 and no TE: the orbit is the static equilibrium in full contact and the monodromy

@@ -1,9 +1,12 @@
 """Pseudo-arclength continuation of periodic orbits in omega, bifurcations and branch switching.
 
 A period-N orbit is a zero of ``G(x, omega) = P^N(x; omega) - x`` where ``P`` is the Poincare map
-of the simulator's own Newmark discretisation (:mod:`gear_env.analysis.tangent`: the same
-kernels, with the exact Jacobian ``M = dP^N/dx`` of the discrete map from its variational
-equations; ``dP^N/domega`` by a central difference of the map). The branch through ``(x, omega)``
+of the simulator's Newmark discretisation with every contact change located inside its step
+(:mod:`gear_env.analysis.tangent`, ``corrected=2``: the same kernels, the step split at the
+crossing, so the map is smooth in x and omega), with the exact Jacobian ``M = dP^N/dx`` of that
+map from its variational equations; ``dP^N/domega`` by a forward difference of the map. Its
+multipliers are the eigenvalues of ``M``. (``located=False``: the unlocated map of the fixed-step
+simulator, for comparison; see :class:`OrbitMap`.) The branch through ``(x, omega)``
 is followed in arclength: each new point is predicted along the unit tangent ``t`` (the null
 vector of ``[M - I, dP/domega]``) by a step ``ds`` and corrected by Newton's method on
 ``G = 0`` plus ``t . (z - z_pred) = 0``, so that folds (turning points in omega) are passed and
@@ -179,6 +182,8 @@ class ContinuationResult:
     elapsed: float = 0.0
     notes: list[str] = field(default_factory=list)
     """Where the run stopped by design: period doublings not followed because of ``max_period``."""
+    located: bool = True
+    """The map had its contact changes located inside the step (:class:`OrbitMap`)."""
 
     @property
     def complete(self) -> bool:
@@ -195,6 +200,7 @@ class ContinuationResult:
             "bifurcations": [b.to_json_dict() for b in self.bifurcations],
             "messages": list(self.messages),
             "notes": list(self.notes),
+            "map": "located" if self.located else "unlocated",
             "complete": bool(self.complete),
         }
 
@@ -243,10 +249,25 @@ class OrbitMap:
         period: N.
         steps_per_period: fixed Newmark steps per mesh period, or None for
             ``default_steps_per_period(omega)``.
+        located: True (default): the map with every contact change located inside its step
+            (``tangent_map(..., corrected=2)``), smooth in x and omega, and its exact Jacobian, whose
+            eigenvalues are the reported multipliers. False: the unlocated map of
+            ``kernels.integrate_stats`` (bit-identical to the simulator's fixed steps), Newton on its
+            exact, piecewise-constant Jacobian, multipliers from the crossing-corrected tangent
+            (``corrected=1``); kept for comparison.
     """
 
-    def __init__(self, model: str, params: GearParams | None, period: int, steps_per_period: int | None = None):
+    def __init__(
+        self,
+        model: str,
+        params: GearParams | None,
+        period: int,
+        steps_per_period: int | None = None,
+        located: bool = True,
+    ):
         self.model = model
+        self.located = bool(located)
+        self.smooth = self.located  # the map is smooth: its own Jacobian gives the multipliers
         self.code = model_code(model)
         self.params = params if params is not None else GearParams()
         refuse_extensions(self.params, "continuation")
@@ -263,7 +284,10 @@ class OrbitMap:
         return self.fixed_steps if self.fixed_steps is not None else default_steps_per_period(omega)
 
     def value(self, x: np.ndarray, omega: float, steps: int) -> np.ndarray:
-        """P^N(x) (no Jacobian), via ``kernels.integrate_stats``."""
+        """P^N(x) (no Jacobian): the located map's kernel (``tangent_map``, so that differences of
+        values and of :meth:`tangent` are consistent to round-off), or ``kernels.integrate_stats``."""
+        if self.located:
+            return self.tangent(x, omega, steps)[0]
         y = np.array(x, dtype=float)
         status, _, _ = K.integrate_stats(
             y, self._a, 0.0, omega, omega, self.period, steps, self._c, self.code, self._pcs, self._st,
@@ -278,7 +302,8 @@ class OrbitMap:
         self, x: np.ndarray, omega: float, steps: int, corrected: bool = False
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(P^N(x), dP^N/dx (10, 10), info (``tangent.INFO_*``), per-period states (N, 10)).
-        ``corrected``: the crossing-corrected Jacobian (:func:`tangent.tangent_map`)."""
+        The located map (mode 2 of :func:`tangent.tangent_map`) if ``located``; otherwise the
+        unlocated one, with the crossing-corrected Jacobian (mode 1) if ``corrected``."""
         y = np.array(x, dtype=float)
         jac = np.empty((K.NSTATE, K.NSTATE))
         pc = np.empty((self.period, K.NSTATE))
@@ -286,7 +311,7 @@ class OrbitMap:
         announce_compile("tangent", "the continuation's tangent-map kernel", TANGENT_COMPILE_TIME)  # once per process
         status = TG.tangent_map(
             y, float(omega), self.period, int(steps), self._c, self.code, NEWTON_MAX_ITER, NEWTON_TOL, jac, pc, info,
-            int(corrected),
+            2 if self.located else int(bool(corrected)),
         )  # fmt: skip
         self.evaluations += 1
         if status != K.OK or not np.all(np.isfinite(jac)):
@@ -342,7 +367,10 @@ def _correct(
         res = float(np.max(np.abs(g)))
         if res <= tol * scale and last_dz <= 1e3 * tol * scale:
             p.iterations = it
-            p.mu = _multipliers(omap.tangent(p.z[:-1], p.omega, steps, corrected=True)[1])
+            # the located map's Jacobian is the exact one of a map smooth in omega; the unlocated
+            # map's piecewise-constant Jacobian jumps, so its multipliers come from the corrected tangent
+            jac = p.jac if getattr(omap, "smooth", False) else omap.tangent(p.z[:-1], p.omega, steps, corrected=True)[1]
+            p.mu = _multipliers(jac)
             return p, ""
         if it == max_iter:
             break
@@ -429,7 +457,8 @@ def _check_int(value: Any, name: str, lo: int, hi: int) -> int:
 
 class _Continuer:
     def __init__(self, model, params, omega_min, omega_max, tol, ds, ds_min, ds_max, max_points, max_iter,
-                 locate_tol, max_period, max_switches, grazing, deadline, progress, map_factory=None):  # fmt: skip
+                 locate_tol, max_period, max_switches, grazing, deadline, progress, map_factory=None,
+                 located=True):  # fmt: skip
         self.model = model
         self.params = params
         self.lo, self.hi = omega_min, omega_max
@@ -438,9 +467,11 @@ class _Continuer:
         self.max_period, self.max_switches, self.grazing = max_period, max_switches, grazing
         self.deadline = deadline
         self.progress = progress
-        self.result = ContinuationResult(model, (omega_min, omega_max))
+        self.result = ContinuationResult(model, (omega_min, omega_max), located=bool(located))
         self.maps: dict[int, Any] = {}
-        self.map_factory = map_factory if map_factory is not None else (lambda n: OrbitMap(model, params, n))
+        self.map_factory = (
+            map_factory if map_factory is not None else (lambda n: OrbitMap(model, params, n, located=located))
+        )
         self.switch_queue: list[tuple[int, BifurcationPoint, _Point]] = []
         self.stopped_ends: dict[int, _Point] = {}  # branch -> last point, for branches stopped by the step size
 
@@ -696,6 +727,7 @@ def continue_orbits(
     transient: int = 300,
     time_limit: float | None = None,
     progress: Callable[[int, float, int], None] | None = None,
+    located: bool = True,
 ) -> ContinuationResult:
     """Continue the period-1 orbit of the gear model over [omega_min, omega_max], locate its
     bifurcations and switch onto period-doubled branches.
@@ -719,6 +751,8 @@ def continue_orbits(
         transient: mesh periods simulated to start the primary branch.
         time_limit: seconds; a branch still running then stops at its last point (None: no limit).
         progress: called as progress(period, omega, points) after every accepted point.
+        located: continue on the map with contact changes located inside the step (default; smooth
+            in omega, exact multipliers); False: the unlocated discrete map (see :class:`OrbitMap`).
 
     Returns:
         :class:`ContinuationResult`. A branch that fails (Newton, step size, kernel) ends at its
@@ -747,17 +781,17 @@ def continue_orbits(
         model, params if params is not None else GearParams(), lo, hi, None, None, 1.0, transient,
         tol=tol, ds=ds, ds_min=ds_min, ds_max=ds_max, max_points=max_points, max_iter=max_iter,
         locate_tol=locate_tol, max_period=max_period, max_switches=max_switches, grazing=grazing,
-        time_limit=time_limit, progress=progress,
+        time_limit=time_limit, progress=progress, located=bool(located),
     )  # fmt: skip
 
 
 def _run(model, params, lo, hi, map_factory, x0, direction, transient, *, tol, ds, ds_min, ds_max, max_points,
-         max_iter, locate_tol, max_period, max_switches, grazing, time_limit, progress):  # fmt: skip
+         max_iter, locate_tol, max_period, max_switches, grazing, time_limit, progress, located=True):  # fmt: skip
     t0 = time.perf_counter()
     deadline = None if time_limit is None else t0 + time_limit
     c = _Continuer(
         model, params, lo, hi, tol, ds, ds_min, ds_max, max_points, max_iter, locate_tol, max_period,
-        max_switches, bool(grazing), deadline, progress, map_factory,
+        max_switches, bool(grazing), deadline, progress, map_factory, located,
     )  # fmt: skip
     omega0 = lo if direction > 0 else hi
     try:
@@ -839,6 +873,9 @@ class FiniteDifferenceMap:
         fd_step: relative central-difference step of the Jacobian.
     """
 
+    smooth = True
+    """The system is smooth: the multipliers are the eigenvalues of the corrector's Jacobian."""
+
     def __init__(self, advance: Callable[[np.ndarray, float], np.ndarray], period: int = 1,
                  amplitude: Callable[[np.ndarray], float] | None = None, fd_step: float = 1e-6):  # fmt: skip
         self.advance = advance
@@ -902,15 +939,17 @@ def orbit_at(
     tol: float = 1e-10,
     max_iter: int = 30,
     transient: int = 300,
+    located: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Period-N orbit at fixed omega by Newton with the exact Jacobian of the discrete map.
 
     Returns (state (10,), multipliers (10,) sorted by decreasing modulus, converged). ``x0``:
-    start state (None: after ``transient`` periods from MODEL.md A10).
+    start state (None: after ``transient`` periods from MODEL.md A10). ``located``: the map with
+    contact changes located inside the step (default) or the unlocated one (:class:`OrbitMap`).
     """
     w = check_omega(omega)
     period = _check_int(period, "period", 1, 256)
-    omap = OrbitMap(model, params, period)
+    omap = OrbitMap(model, params, period, located=located)
     if x0 is None:
         sim = GearSimulator(omap.params, model, None, w)
         sim.advance(transient)

@@ -1,23 +1,23 @@
 """Periodic orbits by shooting on the one-period map, and their Floquet multipliers.
 
 The one-period map ``P`` takes the 10-dim state ``x`` on the Poincare section (mesh phase
-2 pi k) to the state one mesh period later, computed by the simulator's own Newmark-beta kernel
-(``kernels.integrate_stats``, the same discretisation every other result uses). A period-N orbit is
-a fixed point of ``P^N``; it is found with Newton's method on ``G(x) = P^N(x) - x`` with a
-finite-difference Jacobian (10 columns, central differences, step ``fd_step * (1 + |x_j|)``).
+2 pi k) to the state one mesh period later, computed by the simulator's Newmark-beta kernel with
+every contact change located inside its step (``tangent.tangent_map(..., corrected=2)``: a step
+whose end lies in another contact region than its start is split at the crossing). A period-N orbit
+is a fixed point of ``P^N``; it is found with Newton's method on ``G(x) = P^N(x) - x`` with the
+exact Jacobian of that map (its variational equations, propagated with the steps).
 
 The Floquet multipliers are the eigenvalues of the monodromy matrix ``M = dP^N/dx`` at the fixed
-point (the same finite-difference Jacobian). For the discrete map, this is the exact linearisation
-of the *discretised* flow; it converges to the multipliers of the ODE at O(h^2).
+point. With the contact changes located, the map is smooth in x and omega, and ``M`` converges to
+the monodromy of the ODE at O(h^2) with no sawtooth: at the grazing orbits the multipliers are
+within 0.003 of an event-located reference at the default step count (docs/ANALYSIS.md).
 
-Caveat - the map is only piecewise smooth. The backlash force f(Delta) is continuous with a kinked
-derivative at Delta = +/- B_d, so ``P`` is continuous and piecewise smooth: its Jacobian jumps when a
-perturbation changes the contact region at the end of some Newmark step. A central difference
-that straddles such a kink returns an average of the two one-sided Jacobians, with an error
-bounded by the jump; the step (1e-6 relative by default) is small enough that this is rare and
-large enough that the round-off error of the difference stays ~1e-9. Near grazing (an orbit that
-just touches Delta = B_d) the multipliers are therefore less reliable than elsewhere, and a
-multiplier can jump, which a smooth-system bifurcation analysis would not predict.
+``located=False`` gives the map of releases up to 0.4.0: the fixed-step kernel
+(``kernels.integrate_stats``, bit-identical to ``GearSimulator``), with a central finite-difference
+Jacobian (step ``fd_step * (1 + |x_j|)``). That map is only piecewise smooth: the backlash force is
+continuous with a kinked derivative at Delta = +/- B_d, so the Jacobian jumps when a perturbation
+changes the contact region at the end of some Newmark step, and near grazing the multipliers can be
+off by 0.02-0.04 and jump with omega.
 
 Bifurcation type of an unstable orbit, from the multiplier of largest modulus: real and negative
 -> ``"period-doubling"``; complex pair -> ``"neimark-sacker"`` (torus); real and positive ->
@@ -37,11 +37,14 @@ from ..sim import kernels as K
 from ..sim.integration import integrate
 from ..sim.params import GearParams, model_code, refuse_extensions
 from ..sim.simulator import (
+    NEWTON_MAX_ITER,
+    NEWTON_TOL,
     GearSimulator,
     check_count,
     check_omega,
     resolve_steps,
 )
+from . import tangent as TG
 
 BIFURCATIONS = ("stable", "period-doubling", "neimark-sacker", "fold")
 """Labels of :attr:`PeriodicOrbit.bifurcation`."""
@@ -60,7 +63,8 @@ class PeriodicOrbit:
         period: N, in mesh periods.
         state: (10,) state on the Poincare section (b0 units, natural-time velocities).
         multipliers: (10,) complex Floquet multipliers, sorted by decreasing modulus.
-        monodromy: (10, 10) finite-difference Jacobian of P^N at ``state``.
+        monodromy: (10, 10) Jacobian of P^N at ``state`` (exact for the located map,
+            central differences for the unlocated one).
         converged: True if the Newton residual reached the tolerance.
         residual: max-norm of P^N(state) - state [b0 units].
         iterations: Newton iterations used.
@@ -96,6 +100,9 @@ class PeriodMap:
         params: physical parameters (default Table 1).
         period: N (mesh periods per map application).
         steps_per_period: Newmark steps per mesh period; None: ``default_steps_per_period(omega)``.
+        located: True (default): contact changes located inside the step, exact Jacobian
+            (``tangent.tangent_map``, mode 2); False: the fixed-step kernel of the simulator
+            (``kernels.integrate_stats``) with a finite-difference Jacobian.
     """
 
     def __init__(
@@ -105,6 +112,7 @@ class PeriodMap:
         params: GearParams | None = None,
         period: int = 1,
         steps_per_period: int | None = None,
+        located: bool = True,
     ):
         self.omega = check_omega(omega)
         self.model = model
@@ -119,10 +127,32 @@ class PeriodMap:
         self._a = np.zeros(K.NDOF)
         self._pc = np.empty((self.period, K.N_PC))
         self._st = np.empty(K.N_STATS)
+        self.located = bool(located)
         self.evaluations = 0
+        self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (x, P(x), jacobian), located
+
+    def _located(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(P^N(x), dP^N/dx) of the located map (the last call's result is reused for the same x)."""
+        x = np.asarray(x, dtype=float)
+        if self._last is not None and np.array_equal(self._last[0], x):
+            return self._last[1].copy(), self._last[2].copy()
+        y = np.array(x, dtype=float, copy=True)
+        jac = np.empty((K.NSTATE, K.NSTATE))
+        pc = np.empty((self.period, K.NSTATE))
+        info = np.empty(TG.N_INFO)
+        status = TG.tangent_map(
+            y, self.omega, self.period, self.steps, self._c, self.code, NEWTON_MAX_ITER, NEWTON_TOL, jac, pc, info, 2
+        )
+        self.evaluations += 1
+        if status != K.OK or not (np.all(np.isfinite(y)) and np.all(np.isfinite(jac))):
+            raise SimulationDivergedError(0, f"kernel status {status} in the period map", self.omega)
+        self._last = (x.copy(), y.copy(), jac.copy())
+        return y, jac
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """P^N(x). Raises SimulationDivergedError if the integration fails."""
+        if self.located:
+            return self._located(x)[0]
         y = np.array(x, dtype=float, copy=True)
         r = integrate(
             y, self._a, self._c, self.code, self.omega, self.omega, self.period, self.steps,
@@ -134,7 +164,10 @@ class PeriodMap:
         return y
 
     def jacobian(self, x: np.ndarray, fd_step: float = 1e-6) -> np.ndarray:
-        """Central finite-difference Jacobian dP^N/dx (10 x 10) at x; step fd_step * (1 + |x_j|)."""
+        """dP^N/dx (10 x 10) at x: exact for the located map; for the unlocated one central
+        differences with step fd_step * (1 + |x_j|)."""
+        if self.located:
+            return self._located(x)[1]
         n = K.NSTATE
         jac = np.empty((n, n))
         for j in range(n):
@@ -178,6 +211,7 @@ def find_periodic_orbit(
     tol: float = 1e-11,
     max_iter: int = 30,
     fd_step: float = 1e-6,
+    located: bool = True,
 ) -> PeriodicOrbit:
     """Find a period-N orbit by shooting (Newton on P^N(x) - x) and compute its Floquet multipliers.
 
@@ -193,7 +227,10 @@ def find_periodic_orbit(
         transient: mesh periods simulated to build the default initial guess.
         tol: convergence tolerance on max|P^N(x) - x| (b0 units).
         max_iter: maximum Newton iterations.
-        fd_step: relative finite-difference step of the Jacobian.
+        fd_step: relative finite-difference step of the Jacobian (unlocated map only).
+        located: True (default): the map with contact changes located inside the step and its exact
+            Jacobian; False: the simulator's fixed-step map and a finite-difference Jacobian
+            (:class:`PeriodMap`).
 
     Returns:
         :class:`PeriodicOrbit`. If Newton did not converge, ``converged`` is False and the state is
@@ -203,7 +240,7 @@ def find_periodic_orbit(
         ValueError: on invalid arguments.
         SimulationDivergedError: if even the initial guess cannot be integrated.
     """
-    pmap = PeriodMap(omega, model, params, period, steps_per_period)
+    pmap = PeriodMap(omega, model, params, period, steps_per_period, located=located)
     check_count(transient, "transient", 0)
     if not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
         raise ValueError(f"tol must be a finite number > 0, got {tol!r}")

@@ -46,7 +46,10 @@ from ..sim.simulator import (
 )
 from .floquet import find_periodic_orbit
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+"""2: orbits and multipliers of the located map (contact changes located inside the step, exact
+Jacobian; ``floquet.PeriodMap``); 1 (up to 0.4.0): the unlocated map with finite differences. A
+version-1 file (cached or handed in) is refused and recomputed, never mixed in."""
 LABELS = ("stable", "period-doubling", "neimark-sacker", "fold", "unconverged")
 DEFAULT_POINTS = 296
 """Default grid: 296 points on [0.05, 3.0], a step of 0.01."""
@@ -135,6 +138,7 @@ class StabilityMap:
         return {
             "format": "gear-env-stability-map",
             "version": FORMAT_VERSION,
+            "map": "located",
             "model": self.model,
             "steps_per_period": self.steps_per_period,
             "params": self.params,

@@ -158,7 +158,6 @@ def run_point(cfg: SweepConfig, omega: float, state: np.ndarray | None) -> Point
         # a chaotic label from an exponent within CHAOS_MARGIN bands of zero: a finite-time effect
         # of a torus (whose accumulated stretch stays bounded) or weak chaos (whose stretch grows
         # with time)? Keep the perturbed copy running: the pooled time T grows, the band ~1/T
-        # shrinks, and the pooled exponent decides (a torus's falls into the band)
         # shrinks, and the pooled exponent decides (a torus's falls into the band). If it is still
         # chaotic after them, the exponent of the later half of the windows alone decides: a torus's
         # accumulated stretch stops growing after a transient, weak chaos's keeps growing.

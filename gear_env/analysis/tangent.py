@@ -2,7 +2,9 @@
 
 The map is the one every other result uses: the simulator's Newmark-beta step with its Newton
 solve (``kernels.newmark_try_t``, the same physics, the same starting guesses, the same step
-splitting as ``kernels.integrate_stats``), so ``P`` here equals ``floquet.PeriodMap`` bit for bit.
+splitting as ``kernels.integrate_stats``), so ``P`` here (``corrected`` = 0 or 1) equals
+``floquet.PeriodMap(located=False)`` bit for bit; ``corrected`` = 2 is the map with contact changes
+located inside the step that ``floquet.PeriodMap`` and the continuation use by default.
 Alongside every step the variational equations of the *discrete* step are propagated:
 
 * A converged implicit step satisfies ``a1 = A(q1, v1, phi1)`` with ``q1 = q~ + beta h^2 a1`` and

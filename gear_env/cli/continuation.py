@@ -48,6 +48,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=0,
         help="also run a forward sweep on this many omegas and draw its amplitudes under the branches (0: none)",
     )
+    p.add_argument(
+        "--unlocated",
+        action="store_true",
+        help="continue on the unlocated discrete map (contact changes inside a step; multipliers from the "
+        "crossing-corrected tangent), as 0.4.0 did; default: contact changes located inside the step",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=run)
 
@@ -116,7 +122,7 @@ def _run(args: argparse.Namespace) -> int:
         r = continue_orbits(
             m, args.omega_min, args.omega_max, params, tol=args.tol, ds_max=args.ds_max,
             max_period=args.max_period, max_switches=args.max_switches, time_limit=args.time_limit,
-            progress=progress,
+            progress=progress, located=not args.unlocated,
         )  # fmt: skip
         d = r.to_json_dict()
         d["elapsed_s"] = r.elapsed
