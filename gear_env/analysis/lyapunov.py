@@ -29,7 +29,7 @@ DEFAULT_D0 = 1e-8
 """Default initial separation (b0 units): large against the Newton tolerance, small against b0."""
 
 
-def _unit_direction(n: int) -> np.ndarray:
+def start_direction(n: int) -> np.ndarray:
     """Fixed initial separation direction (1, 1.1, 1.2, ...)/norm: deterministic results."""
     v = 1.0 + 0.1 * np.arange(n, dtype=float)
     return v / np.linalg.norm(v)
@@ -104,34 +104,53 @@ def merge_stats(per_period: np.ndarray) -> np.ndarray:
 
 
 def lyapunov_record(
-    x: np.ndarray, omega: float, periods: int, steps_per_period: int, consts: np.ndarray, code: int, d0: float
+    x: np.ndarray,
+    omega: float,
+    periods: int,
+    steps_per_period: int,
+    consts: np.ndarray,
+    code: int,
+    d0: float,
+    direction: np.ndarray | None = None,
+    skip: int | None = None,
 ) -> tuple[float, np.ndarray, np.ndarray, float, float, float]:
     """Record ``periods`` mesh periods from state ``x`` (updated in place) at constant ``omega``
     while a copy displaced by ``d0`` runs alongside and is renormalised every period.
 
-    Both copies and the renormalisation run in one compiled call
-    (:func:`gear_env.analysis.lyapunov_kernel.lyapunov_pair`), one ``kernels.integrate_stats`` call
-    per period and copy, so the copy costs the physics and nothing else.
-
-    Returns (exponent per unit natural time, Poincare samples (periods, 14), interval stats,
-    natural time elapsed, sum of log(d/d0), natural time it was averaged over; the last two let
-    a caller pool several windows). Raises SimulationDivergedError on blow-up.
+    ``direction``: None (a fixed start direction; the first :func:`default_skip` periods only align
+    the separation), or a (10,) separation vector, e.g. the one a previous record of the same
+    trajectory left (the copy continues from it; nothing is skipped unless ``skip`` says so), which
+    this record overwrites with its own final unit direction. ``skip``: periods excluded from the
+    exponent (None: :func:`default_skip` without ``direction``, 0 with it). Continuing the copy
+    across the windows of a long record matters on a torus, where realigning a fresh copy adds a
+    positive stretch of order 1 per window that reads as weak chaos.
     """
     from .lyapunov_kernel import lyapunov_pair
 
-    skip = default_skip(periods)
+    if direction is None:
+        skip = default_skip(periods) if skip is None else skip
+        u = start_direction(K.NSTATE)
+    else:
+        skip = 0 if skip is None else skip
+        u = np.ascontiguousarray(direction, dtype=float).copy()
+        nu = float(np.linalg.norm(u))
+        if u.shape != (K.NSTATE,) or not (math.isfinite(nu) and nu > 0):
+            raise ValueError(f"direction must be 10 finite values, not all zero, got shape {u.shape}")
+        u /= nu
     xr = np.ascontiguousarray(x, dtype=float).copy()
     pc = np.empty((periods, K.N_PC))
     st_all = np.empty((periods, K.N_STATS))
     status, failed, sum_log, t_count, t_all = lyapunov_pair(
         xr, float(omega), int(periods), int(steps_per_period), consts, int(code), float(d0),
-        _unit_direction(K.NSTATE), int(skip), pc, st_all, NEWTON_MAX_ITER, NEWTON_TOL,
+        u, int(skip), pc, st_all, NEWTON_MAX_ITER, NEWTON_TOL,
     )  # fmt: skip
     if status != K.OK:
         raise SimulationDivergedError(
             int(failed), f"integration failed (status {status}) in the Lyapunov record", omega
         )
     x[:] = xr
+    if direction is not None:
+        direction[:] = u
     lam = sum_log / t_count if t_count > 0 else 0.0
     return float(lam), pc, merge_stats(st_all), float(t_all), float(sum_log), float(t_count)
 
@@ -152,7 +171,7 @@ def lyapunov_map(
     x = np.array(x0, dtype=float)
     n = check_count(periods, "periods", 2)
     skip = default_skip(n) if skip is None else int(skip)
-    u = _unit_direction(x.size)
+    u = start_direction(x.size)
     xp = x + d0 * u
     sum_log = 0.0
     t_count = 0.0

@@ -28,7 +28,8 @@ def lyapunov_pair(x, omega, periods, n_steps, c, dynamic, d0, u, skip, pc, st_al
     ``skip`` only align the separation.
 
     Returns (status, failed period, sum of log(d/d0) over periods >= skip, natural time of those
-    periods, natural time of all periods).
+    periods, natural time of all periods). On return ``u`` holds the unit separation direction at the
+    end (after the last renormalisation), so that a caller can continue the copy in a next record.
     """
     n = K.NSTATE
     xc = np.empty(n)
@@ -73,4 +74,6 @@ def lyapunov_pair(x, omega, periods, n_steps, c, dynamic, d0, u, skip, pc, st_al
         else:  # separation lost below round-off: restart along the fixed direction
             for i in range(n):
                 xc[i] = x[i] + d0 * u[i]
+    for i in range(n):
+        u[i] = (xc[i] - x[i]) / d0
     return K.OK, periods, sum_log, t_count, t_all

@@ -38,7 +38,7 @@ from .classify import (
     lyapunov_tolerance,
     same_orbit,
 )
-from .lyapunov import DEFAULT_D0, lyapunov_record
+from .lyapunov import DEFAULT_D0, default_skip, lyapunov_record, start_direction
 from .results import PointResult, SweepResult, assemble
 
 DIRECTIONS = ("forward", "reverse")
@@ -121,16 +121,28 @@ def run_point(cfg: SweepConfig, omega: float, state: np.ndarray | None) -> Point
     sim.advance(cfg.transient)
     acc = [0.0, 0.0]  # sum of log(d/d0), averaging time
     wins: list[tuple[float, float]] = []  # the same per window
+    # the perturbed copy's direction, continued across consecutive Lyapunov windows (a fresh copy in
+    # every window would add the stretch of its realignment, O(1) per window, which reads as weak
+    # chaos on a torus); ``live`` is False before the first one and after a window without the copy
+    u = start_direction(K.NSTATE)
+    live = [False]
 
     def window(with_lyap: bool) -> tuple[np.ndarray, np.ndarray]:
         if with_lyap:
             x = sim.state
-            _, pc, stats, _, sl, tc = lyapunov_record(x, omega, cfg.periods, n, cfg.params.consts, code, cfg.d0)
+            if not live[0]:
+                u[:] = start_direction(K.NSTATE)
+            skip = None if live[0] else default_skip(cfg.periods)
+            _, pc, stats, _, sl, tc = lyapunov_record(
+                x, omega, cfg.periods, n, cfg.params.consts, code, cfg.d0, direction=u, skip=skip
+            )
+            live[0] = True
             acc[0] += sl
             acc[1] += tc
             wins.append((sl, tc))
             sim.reset(initial_state=x, omega=omega)
             return pc, stats
+        live[0] = False
         iv = sim.advance(cfg.periods)
         return iv.poincare, iv.stats
 
