@@ -66,6 +66,26 @@ class _AliasLoader(importlib.abc.Loader):
         module.__spec__ = self._spec  # importlib set the alias spec; the module keeps its own
 
 
+def _importer_stacklevel() -> int:
+    """The ``stacklevel`` (for ``warnings.warn`` in the finder) of the code that imported the old path.
+
+    CPython's ``warnings`` already skips its frozen import machinery (``<frozen importlib._bootstrap>``)
+    when it counts levels, so a plain ``import gear_env.simulator`` is level 2; ``importlib.import_module``
+    adds a frame of ``importlib/__init__.py`` that it does count, so that one is stepped over too. The
+    warning is then attributed to the user's module, and Python's default filters show it when that
+    module is ``__main__`` (a script), as for any deprecation."""
+    f = sys._getframe(2)  # the finder's caller
+    level = 1
+    while f is not None:
+        name = f.f_code.co_filename
+        if not name.startswith("<frozen importlib"):
+            level += 1
+            if not name.replace("\\", "/").endswith("importlib/__init__.py"):
+                break
+        f = f.f_back
+    return level
+
+
 class _AliasFinder(importlib.abc.MetaPathFinder):
     def find_spec(self, fullname, path=None, target=None):  # noqa: D102 - importlib protocol
         new = new_name(fullname) if fullname.startswith("gear_env.") else None
@@ -75,7 +95,7 @@ class _AliasFinder(importlib.abc.MetaPathFinder):
             f"{fullname} moved to {new} in gear-env 0.5; import it from there (the old path is an alias "
             "and will be removed)",
             DeprecationWarning,
-            stacklevel=2,
+            stacklevel=_importer_stacklevel(),
         )
         return importlib.machinery.ModuleSpec(fullname, _AliasLoader(new))
 

@@ -326,6 +326,30 @@ def test_old_module_paths_are_deprecated_aliases_of_the_new_ones():
     assert _moved.new_name("gear_env.io") is None and _moved.new_name("gear_env.analysis.sweep") is None
 
 
+def test_the_deprecation_names_the_users_line_so_a_plain_script_shows_it(tmp_path):
+    """Python shows a DeprecationWarning by default only when it is attributed to ``__main__``: the alias
+    warning must point at the user's import (a plain ``import``, a ``from`` import, and
+    ``importlib.import_module``), not into importlib, or scripts never see it."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "old_paths.py"
+    script.write_text(
+        "import importlib\n"
+        "import gear_env.simulator\n"
+        "from gear_env import env_terms\n"
+        "importlib.import_module('gear_env.episodes')\n"
+    )
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    for line, new in (
+        (2, "gear_env.sim.simulator"),
+        (3, "gear_env.envs.env_terms"),
+        (4, "gear_env.evaluation.episodes"),
+    ):
+        assert f"{script}:{line}: DeprecationWarning: " in run.stderr and f"moved to {new} " in run.stderr, run.stderr
+
+
 def test_sb3_adapter_is_not_reexported_from_vector_env():
     """The lazy re-export closed a cycle; the old import now says where the class lives."""
     import gear_env.envs.vector_env as ve
