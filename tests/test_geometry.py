@@ -2,7 +2,7 @@
 
 ROSS values: ROSS's own tests/test_gear_element.py (the 62/62 pair), and for the other pairs
 the output of ``python benchmarks/geometry_vs_ross.py --ross-python <python with ross> --json``
-run once on 2026-12-03 against petrobras/ross at commit 631a249a (ROSS ``Mesh`` of two
+run once against petrobras/ross at commit 631a249a (ROSS ``Mesh`` of two
 ``GearElementTVMS``; ``stiffness_range`` = 1000 points ``linspace(0, one mesh period, 1000)``).
 """
 

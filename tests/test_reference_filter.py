@@ -52,7 +52,7 @@ def test_step_response_is_first_order_then_rate_limited(alpha):
 
 
 def test_no_filter_is_the_plain_rate_limited_setpoint():
-    """reference_filter = 1 (the setting's default; GearSpeed-v1 before 2026-12-02) decodes exactly as
+    """reference_filter = 1 (the setting's default; GearSpeed-v1 before release 0.4.0) decodes exactly as
     before: clip(T, w - dmax, w + dmax)."""
     cfg = task_config("GearSpeed-v1", {"reference_filter": 1.0})
     assert GearSpeedConfig().reference_filter == 1.0
