@@ -14,6 +14,7 @@ import importlib.abc
 import importlib.machinery
 import sys
 import warnings
+from types import FrameType
 
 MOVED: dict[str, str] = {
     **{
@@ -74,7 +75,7 @@ def _importer_stacklevel() -> int:
     adds a frame of ``importlib/__init__.py`` that it does count, so that one is stepped over too. The
     warning is then attributed to the user's module, and Python's default filters show it when that
     module is ``__main__`` (a script), as for any deprecation."""
-    f = sys._getframe(2)  # the finder's caller
+    f: FrameType | None = sys._getframe(2)  # the finder's caller
     level = 1
     while f is not None:
         name = f.f_code.co_filename
