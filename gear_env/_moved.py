@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib
 import importlib.abc
 import importlib.machinery
+import os
 import sys
 import warnings
 from types import FrameType
@@ -67,21 +68,28 @@ class _AliasLoader(importlib.abc.Loader):
         module.__spec__ = self._spec  # importlib set the alias spec; the module keeps its own
 
 
+_STDLIB_IMPORTERS = (
+    os.path.dirname(importlib.__file__) + os.sep,  # importlib.import_module, importlib.util.find_spec
+    os.path.join(os.path.dirname(os.__file__), "pkgutil.py"),  # pkgutil.resolve_name (unittest.mock.patch)
+    os.path.join(os.path.dirname(os.__file__), "unittest", "mock.py"),
+)
+
+
 def _importer_stacklevel() -> int:
     """The ``stacklevel`` (for ``warnings.warn`` in the finder) of the code that imported the old path.
 
-    CPython's ``warnings`` already skips its frozen import machinery (``<frozen importlib._bootstrap>``)
-    when it counts levels, so a plain ``import gear_env.simulator`` is level 2; ``importlib.import_module``
-    adds a frame of ``importlib/__init__.py`` that it does count, so that one is stepped over too. The
-    warning is then attributed to the user's module, and Python's default filters show it when that
-    module is ``__main__`` (a script), as for any deprecation."""
+    CPython's ``warnings`` skips its own import machinery when it counts levels (a frame whose file
+    name contains both "importlib" and "_bootstrap"), so those frames are not counted here either;
+    the standard library's importers above them (``importlib.import_module``, ``pkgutil.resolve_name``
+    as ``unittest.mock.patch`` uses it) are counted and stepped over. The warning is then attributed
+    to the user's line, and Python's default filters show it when that module is ``__main__``."""
     f: FrameType | None = sys._getframe(2)  # the finder's caller
     level = 1
     while f is not None:
         name = f.f_code.co_filename
-        if not name.startswith("<frozen importlib"):
+        if not ("importlib" in name and "_bootstrap" in name):  # warnings' own test of an internal frame
             level += 1
-            if not name.replace("\\", "/").endswith("importlib/__init__.py"):
+            if not name.startswith(("<frozen importlib", *_STDLIB_IMPORTERS)):
                 break
         f = f.f_back
     return level

@@ -328,26 +328,38 @@ def test_old_module_paths_are_deprecated_aliases_of_the_new_ones():
 
 def test_the_deprecation_names_the_users_line_so_a_plain_script_shows_it(tmp_path):
     """Python shows a DeprecationWarning by default only when it is attributed to ``__main__``: the alias
-    warning must point at the user's import (a plain ``import``, a ``from`` import, and
-    ``importlib.import_module``), not into importlib, or scripts never see it."""
+    warning must point at the user's line for every way of importing (a plain ``import`` inside a function,
+    ``from ... import``, ``importlib.import_module``, ``pkgutil.resolve_name``, ``unittest.mock.patch`` and
+    ``importlib.util.find_spec``), not into the standard library, or scripts never see it. Run with the
+    import machinery frozen (the default) and not frozen (its frames then have real file names)."""
     import subprocess
     import sys
 
     script = tmp_path / "old_paths.py"
     script.write_text(
-        "import importlib\n"
-        "import gear_env.simulator\n"
+        "import importlib, importlib.util, pkgutil\n"
+        "from unittest import mock\n"
+        "def f():\n"
+        "    import gear_env.simulator\n"
+        "f()\n"
         "from gear_env import env_terms\n"
         "importlib.import_module('gear_env.episodes')\n"
+        "pkgutil.resolve_name('gear_env.tasks')\n"
+        "with mock.patch('gear_env.report.__doc__', 'x'):\n"
+        "    pass\n"
+        "importlib.util.find_spec('gear_env.bands')\n"
     )
-    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300, cwd=tmp_path)
-    assert run.returncode == 0, run.stderr
-    for line, new in (
-        (2, "gear_env.sim.simulator"),
-        (3, "gear_env.envs.env_terms"),
-        (4, "gear_env.evaluation.episodes"),
-    ):
-        assert f"{script}:{line}: DeprecationWarning: " in run.stderr and f"moved to {new} " in run.stderr, run.stderr
+    expected = {4: "sim.simulator", 6: "envs.env_terms", 7: "evaluation.episodes", 8: "envs.tasks",
+                9: "evaluation.report", 11: "envs.bands"}  # fmt: skip
+    for frozen in ("on", "off"):
+        run = subprocess.run(
+            [sys.executable, "-X", f"frozen_modules={frozen}", str(script)],
+            capture_output=True, text=True, timeout=300, cwd=tmp_path,
+        )  # fmt: skip
+        assert run.returncode == 0, run.stderr
+        for line, new in expected.items():
+            assert f"{script}:{line}: DeprecationWarning: " in run.stderr, (frozen, line, run.stderr)
+            assert f"moved to gear_env.{new} " in run.stderr, (frozen, new, run.stderr)
 
 
 def test_sb3_adapter_is_not_reexported_from_vector_env():

@@ -300,6 +300,13 @@ def test_bad_input_names_the_argument():
         continue_orbits("dynamic", 0.5, 1.0, ds=0.01, ds_min=0.1)
     with pytest.raises(ValueError, match="period"):
         orbit_at(1.0, "dynamic", period=0)
+    for bad in (None, "False", 0):
+        with pytest.raises(ValueError, match="located"):
+            continue_orbits("dynamic", 0.5, 1.0, located=bad)
+        with pytest.raises(ValueError, match="located"):
+            orbit_at(1.0, "dynamic", located=bad)
+        with pytest.raises(ValueError, match="located"):
+            find_periodic_orbit(1.0, "dynamic", located=bad)
 
 
 def test_a_stopped_continuation_keeps_its_points_and_says_where():

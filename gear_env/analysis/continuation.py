@@ -5,8 +5,10 @@ of the simulator's Newmark discretisation with every contact change located insi
 (:mod:`gear_env.analysis.tangent`, ``corrected=2``: the same kernels, the step split at the
 crossing, so the map is smooth in x and omega), with the exact Jacobian ``M = dP^N/dx`` of that
 map from its variational equations; ``dP^N/domega`` by a forward difference of the map. Its
-multipliers are the eigenvalues of ``M``. (``located=False``: the unlocated map of the fixed-step
-simulator, for comparison; see :class:`OrbitMap`.) The branch through ``(x, omega)``
+multipliers are the eigenvalues of ``M``. (A contact that begins and ends inside one step is not
+seen at any step end and so not located, nor is a crossing whose search fails; such a step keeps
+the discrete map's one-sided derivative. Both are rare and occur only at grazing. ``located=False``:
+the unlocated map of the fixed-step simulator, for comparison; see :class:`OrbitMap`.) The branch through ``(x, omega)``
 is followed in arclength: each new point is predicted along the unit tangent ``t`` (the null
 vector of ``[M - I, dP/domega]``) by a step ``ds`` and corrected by Newton's method on
 ``G = 0`` plus ``t . (z - z_pred) = 0``, so that folds (turning points in omega) are passed and
@@ -57,6 +59,7 @@ from ..sim import kernels as K
 from ..sim.params import GearParams, model_code, refuse_extensions
 from ..sim.simulator import NEWTON_MAX_ITER, NEWTON_TOL, GearSimulator, check_omega, default_steps_per_period
 from . import tangent as TG
+from .floquet import check_located
 
 TANGENT_COMPILE_TIME = "4 min on an idle 2-core machine (one kernel holds all three tangent modes)"
 """What the first-use notice of the tangent-map kernel says (measured: 231 s at load about 1)."""
@@ -182,8 +185,9 @@ class ContinuationResult:
     elapsed: float = 0.0
     notes: list[str] = field(default_factory=list)
     """Where the run stopped by design: period doublings not followed because of ``max_period``."""
-    located: bool = True
-    """The map had its contact changes located inside the step (:class:`OrbitMap`)."""
+    located: bool | None = True
+    """The gear map had its contact changes located inside the step (:class:`OrbitMap`); None: a
+    custom map (:func:`continue_map`)."""
 
     @property
     def complete(self) -> bool:
@@ -200,7 +204,7 @@ class ContinuationResult:
             "bifurcations": [b.to_json_dict() for b in self.bifurcations],
             "messages": list(self.messages),
             "notes": list(self.notes),
-            "map": "located" if self.located else "unlocated",
+            "map": "custom" if self.located is None else ("located" if self.located else "unlocated"),
             "complete": bool(self.complete),
         }
 
@@ -266,7 +270,7 @@ class OrbitMap:
         located: bool = True,
     ):
         self.model = model
-        self.located = bool(located)
+        self.located = check_located(located)
         self.smooth = self.located  # the map is smooth: its own Jacobian gives the multipliers
         self.code = model_code(model)
         self.params = params if params is not None else GearParams()
@@ -467,7 +471,9 @@ class _Continuer:
         self.max_period, self.max_switches, self.grazing = max_period, max_switches, grazing
         self.deadline = deadline
         self.progress = progress
-        self.result = ContinuationResult(model, (omega_min, omega_max), located=bool(located))
+        self.result = ContinuationResult(
+            model, (omega_min, omega_max), located=None if map_factory is not None else bool(located)
+        )
         self.maps: dict[int, Any] = {}
         self.map_factory = (
             map_factory if map_factory is not None else (lambda n: OrbitMap(model, params, n, located=located))
@@ -759,6 +765,7 @@ def continue_orbits(
         last good point and says why (``stop_reason``, ``messages``); what was found is returned.
     """
     model_code(model)
+    located = check_located(located)
     lo = check_omega(omega_min, "omega_min")
     hi = check_omega(omega_max, "omega_max")
     if not lo < hi:
@@ -949,7 +956,7 @@ def orbit_at(
     """
     w = check_omega(omega)
     period = _check_int(period, "period", 1, 256)
-    omap = OrbitMap(model, params, period, located=located)
+    omap = OrbitMap(model, params, period, located=check_located(located))
     if x0 is None:
         sim = GearSimulator(omap.params, model, None, w)
         sim.advance(transient)

@@ -8,8 +8,9 @@ is a fixed point of ``P^N``; it is found with Newton's method on ``G(x) = P^N(x)
 exact Jacobian of that map (its variational equations, propagated with the steps).
 
 The Floquet multipliers are the eigenvalues of the monodromy matrix ``M = dP^N/dx`` at the fixed
-point. With the contact changes located, the map is smooth in x and omega, and ``M`` converges to
-the monodromy of the ODE at O(h^2) with no sawtooth: at the grazing orbits the multipliers are
+point. With the contact changes located, the map is smooth in x and omega (except where a contact
+begins and ends inside one step, which no step end sees: at grazing), and ``M`` converges to the
+monodromy of the ODE at O(h^2) with no sawtooth: at the grazing orbits the multipliers are
 within 0.003 of an event-located reference at the default step count (docs/ANALYSIS.md).
 
 ``located=False`` gives the map of releases up to 0.4.0: the fixed-step kernel
@@ -45,6 +46,14 @@ from ..sim.simulator import (
     resolve_steps,
 )
 from . import tangent as TG
+
+
+def check_located(located: Any) -> bool:
+    """``located`` as a bool; ValueError naming it unless it is True or False."""
+    if not isinstance(located, (bool, np.bool_)):
+        raise ValueError(f"located must be True or False, got {located!r}")
+    return bool(located)
+
 
 BIFURCATIONS = ("stable", "period-doubling", "neimark-sacker", "fold")
 """Labels of :attr:`PeriodicOrbit.bifurcation`."""
@@ -127,7 +136,7 @@ class PeriodMap:
         self._a = np.zeros(K.NDOF)
         self._pc = np.empty((self.period, K.N_PC))
         self._st = np.empty(K.N_STATS)
-        self.located = bool(located)
+        self.located = check_located(located)
         self.evaluations = 0
         self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (x, P(x), jacobian), located
 

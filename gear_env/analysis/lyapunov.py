@@ -117,25 +117,48 @@ def lyapunov_record(
     """Record ``periods`` mesh periods from state ``x`` (updated in place) at constant ``omega``
     while a copy displaced by ``d0`` runs alongside and is renormalised every period.
 
+    Both copies and the renormalisation run in one compiled call
+    (:func:`gear_env.analysis.lyapunov_kernel.lyapunov_pair`), one ``kernels.integrate_stats`` call
+    per period and copy, so the copy costs the physics and nothing else.
+
     ``direction``: None (a fixed start direction; the first :func:`default_skip` periods only align
-    the separation), or a (10,) separation vector, e.g. the one a previous record of the same
-    trajectory left (the copy continues from it; nothing is skipped unless ``skip`` says so), which
-    this record overwrites with its own final unit direction. ``skip``: periods excluded from the
-    exponent (None: :func:`default_skip` without ``direction``, 0 with it). Continuing the copy
-    across the windows of a long record matters on a torus, where realigning a fresh copy adds a
-    positive stretch of order 1 per window that reads as weak chaos.
+    the separation), or a writeable float64 array of shape (10,), e.g. the one a previous record of
+    the same trajectory left: the copy starts along it, and on return it holds this record's final
+    unit separation direction (so consecutive records are one). Continuing the copy across the
+    windows of a long record matters on a torus, where realigning a fresh copy adds a positive
+    stretch of order 1 per window that reads as weak chaos. ``skip``: periods excluded from the
+    exponent, an integer in [0, periods) (None: :func:`default_skip` without ``direction``, 0 with it).
+
+    Returns (exponent per unit natural time, Poincare samples (periods, 14), interval stats,
+    natural time elapsed, sum of log(d/d0), natural time it was averaged over; the last two let
+    a caller pool several windows). Raises ValueError on a bad ``direction`` or ``skip`` (before
+    any work) and SimulationDivergedError on blow-up.
     """
     from .lyapunov_kernel import lyapunov_pair
 
+    if skip is not None and (
+        isinstance(skip, bool) or not isinstance(skip, (int, np.integer)) or not 0 <= skip < periods
+    ):
+        raise ValueError(f"skip must be an integer in [0, periods) = [0, {periods}), got {skip!r}")
     if direction is None:
-        skip = default_skip(periods) if skip is None else skip
+        skip = default_skip(periods) if skip is None else int(skip)
         u = start_direction(K.NSTATE)
     else:
-        skip = 0 if skip is None else skip
-        u = np.ascontiguousarray(direction, dtype=float).copy()
+        if not (
+            isinstance(direction, np.ndarray)
+            and direction.shape == (K.NSTATE,)
+            and direction.dtype == np.float64
+            and direction.flags.writeable
+        ):
+            raise ValueError(
+                f"direction must be a writeable float64 array of shape ({K.NSTATE},), got "
+                f"{type(direction).__name__} {getattr(direction, 'shape', '')} {getattr(direction, 'dtype', '')}"
+            )
+        skip = 0 if skip is None else int(skip)
+        u = np.ascontiguousarray(direction).copy()
         nu = float(np.linalg.norm(u))
-        if u.shape != (K.NSTATE,) or not (math.isfinite(nu) and nu > 0):
-            raise ValueError(f"direction must be 10 finite values, not all zero, got shape {u.shape}")
+        if not (math.isfinite(nu) and nu > 0):
+            raise ValueError("direction must be 10 finite values, not all zero")
         u /= nu
     xr = np.ascontiguousarray(x, dtype=float).copy()
     pc = np.empty((periods, K.N_PC))
@@ -150,7 +173,7 @@ def lyapunov_record(
         )
     x[:] = xr
     if direction is not None:
-        direction[:] = u
+        direction[:] = u / np.linalg.norm(u)  # (xc - x) / d0 after the last renormalisation: unit to ~1e-8
     lam = sum_log / t_count if t_count > 0 else 0.0
     return float(lam), pc, merge_stats(st_all), float(t_all), float(sum_log), float(t_count)
 

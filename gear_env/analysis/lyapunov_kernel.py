@@ -71,7 +71,7 @@ def lyapunov_pair(x, omega, periods, n_steps, c, dynamic, d0, u, skip, pc, st_al
             f = d0 / d
             for i in range(n):
                 xc[i] = x[i] + f * (xc[i] - x[i])
-        else:  # separation lost below round-off: restart along the fixed direction
+        else:  # separation lost below round-off: restart along the start direction u
             for i in range(n):
                 xc[i] = x[i] + d0 * u[i]
     for i in range(n):

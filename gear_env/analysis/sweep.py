@@ -113,7 +113,8 @@ def run_point(cfg: SweepConfig, omega: float, state: np.ndarray | None) -> Point
     """Steady motion at one omega from ``state`` (None: static equilibrium); see the module doc.
 
     The exponent is pooled over every window it was computed on (the first, and the confirmation
-    windows of non-periodic motions), and the zero band shrinks as 3/T with the pooled time T.
+    windows of non-periodic motions), and the zero band shrinks as 2/T with the pooled time T
+    (``classify.lyapunov_tolerance``).
     """
     n = cfg.steps(omega)
     code = model_code(cfg.model)
