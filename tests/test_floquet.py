@@ -189,3 +189,19 @@ def test_lyapunov_equals_log_multiplier_over_period(omega):
     o = find_periodic_orbit(omega, "dynamic")
     lam = largest_lyapunov(omega, "dynamic", state=o.state, periods=1000)
     assert lam == pytest.approx(np.log(o.max_multiplier) * omega / (2 * np.pi), abs=3e-4)
+
+
+def test_period_map_reuses_its_last_result_only_for_the_same_map_and_state():
+    """The located map keeps its last (P(x), Jacobian) for the Newton loop; a changed state or a changed
+    public attribute (omega) recomputes, so the cache cannot hand back another map's result."""
+    from gear_env.analysis.floquet import PeriodMap
+
+    pm = PeriodMap(1.2, "dynamic")
+    x = find_periodic_orbit(1.2, "dynamic").state
+    y1, n1 = pm(x), pm.evaluations
+    assert np.array_equal(pm(x), y1) and np.array_equal(pm.jacobian(x), pm.jacobian(x.copy()))
+    assert pm.evaluations == n1  # the same x: no new evaluation
+    pm.omega = 1.25
+    y2 = pm(x)
+    assert pm.evaluations == n1 + 1 and not np.array_equal(y1, y2)
+    assert np.array_equal(y2, PeriodMap(1.25, "dynamic", steps_per_period=pm.steps)(x))

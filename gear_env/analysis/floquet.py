@@ -138,13 +138,14 @@ class PeriodMap:
         self._st = np.empty(K.N_STATS)
         self.located = check_located(located)
         self.evaluations = 0
-        self._last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # (x, P(x), jacobian), located
+        self._last: tuple[tuple, np.ndarray, np.ndarray, np.ndarray] | None = None  # (key, x, P(x), jacobian)
 
     def _located(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(P^N(x), dP^N/dx) of the located map (the last call's result is reused for the same x)."""
         x = np.asarray(x, dtype=float)
-        if self._last is not None and np.array_equal(self._last[0], x):
-            return self._last[1].copy(), self._last[2].copy()
+        key = (self.omega, self.steps, self.period, self.code)  # public attributes: a change invalidates
+        if self._last is not None and self._last[0] == key and np.array_equal(self._last[1], x):
+            return self._last[2].copy(), self._last[3].copy()
         y = np.array(x, dtype=float, copy=True)
         jac = np.empty((K.NSTATE, K.NSTATE))
         pc = np.empty((self.period, K.NSTATE))
@@ -155,7 +156,7 @@ class PeriodMap:
         self.evaluations += 1
         if status != K.OK or not (np.all(np.isfinite(y)) and np.all(np.isfinite(jac))):
             raise SimulationDivergedError(0, f"kernel status {status} in the period map", self.omega)
-        self._last = (x.copy(), y.copy(), jac.copy())
+        self._last = (key, x.copy(), y.copy(), jac.copy())
         return y, jac
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
