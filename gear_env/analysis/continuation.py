@@ -308,15 +308,9 @@ class OrbitMap:
         """(P^N(x), dP^N/dx (10, 10), info (``tangent.INFO_*``), per-period states (N, 10)).
         The located map (mode 2 of :func:`tangent.tangent_map`) if ``located``; otherwise the
         unlocated one, with the crossing-corrected Jacobian (mode 1) if ``corrected``."""
-        y = np.array(x, dtype=float)
-        jac = np.empty((K.NSTATE, K.NSTATE))
-        pc = np.empty((self.period, K.NSTATE))
-        info = np.empty(TG.N_INFO)
         announce_compile("tangent", "the continuation's tangent-map kernel", TANGENT_COMPILE_TIME)  # once per process
-        status = TG.tangent_map(
-            y, float(omega), self.period, int(steps), self._c, self.code, NEWTON_MAX_ITER, NEWTON_TOL, jac, pc, info,
-            2 if self.located else int(bool(corrected)),
-        )  # fmt: skip
+        mode = 2 if self.located else int(bool(corrected))
+        status, y, jac, info, pc = TG.run_tangent_map(x, omega, self.period, steps, self._c, self.code, mode)
         self.evaluations += 1
         if status != K.OK or not np.all(np.isfinite(jac)):
             raise _MapFailed(f"kernel status {status} at omega={omega:.6g}")

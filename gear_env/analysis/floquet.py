@@ -38,8 +38,6 @@ from ..sim import kernels as K
 from ..sim.integration import integrate
 from ..sim.params import GearParams, model_code, refuse_extensions
 from ..sim.simulator import (
-    NEWTON_MAX_ITER,
-    NEWTON_TOL,
     GearSimulator,
     check_count,
     check_omega,
@@ -146,13 +144,7 @@ class PeriodMap:
         key = (self.omega, self.steps, self.period, self.code)  # public attributes: a change invalidates
         if self._last is not None and self._last[0] == key and np.array_equal(self._last[1], x):
             return self._last[2].copy(), self._last[3].copy()
-        y = np.array(x, dtype=float, copy=True)
-        jac = np.empty((K.NSTATE, K.NSTATE))
-        pc = np.empty((self.period, K.NSTATE))
-        info = np.empty(TG.N_INFO)
-        status = TG.tangent_map(
-            y, self.omega, self.period, self.steps, self._c, self.code, NEWTON_MAX_ITER, NEWTON_TOL, jac, pc, info, 2
-        )
+        status, y, jac, _, _ = TG.run_tangent_map(x, self.omega, self.period, self.steps, self._c, self.code, 2)
         self.evaluations += 1
         if status != K.OK or not (np.all(np.isfinite(y)) and np.all(np.isfinite(jac))):
             raise SimulationDivergedError(0, f"kernel status {status} in the period map", self.omega)

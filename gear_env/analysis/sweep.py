@@ -126,24 +126,25 @@ def run_point(cfg: SweepConfig, omega: float, state: np.ndarray | None) -> Point
     # every window would add the stretch of its realignment, O(1) per window, which reads as weak
     # chaos on a torus); ``live`` is False before the first one and after a window without the copy
     u = start_direction(K.NSTATE)
-    live = [False]
+    live = False
 
     def window(with_lyap: bool) -> tuple[np.ndarray, np.ndarray]:
+        nonlocal live
         if with_lyap:
             x = sim.state
-            if not live[0]:
+            if not live:
                 u[:] = start_direction(K.NSTATE)
-            skip = None if live[0] else default_skip(cfg.periods)
+            skip = None if live else default_skip(cfg.periods)
             _, pc, stats, _, sl, tc = lyapunov_record(
                 x, omega, cfg.periods, n, cfg.params.consts, code, cfg.d0, direction=u, skip=skip
             )
-            live[0] = True
+            live = True
             acc[0] += sl
             acc[1] += tc
             wins.append((sl, tc))
             sim.reset(initial_state=x, omega=omega)
             return pc, stats
-        live[0] = False
+        live = False
         iv = sim.advance(cfg.periods)
         return iv.poincare, iv.stats
 

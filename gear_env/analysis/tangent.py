@@ -428,6 +428,28 @@ def tangent_map(x, omega, n_periods, n_steps, c, dynamic, max_iter, tol, jac, pc
     return status
 
 
+def run_tangent_map(
+    x: np.ndarray, omega: float, period: int, steps: int, consts: np.ndarray, code: int, mode: int
+) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`tangent_map` with its buffers allocated here and the simulator's Newton settings:
+    ``period`` mesh periods from the state ``x`` (10, b0 units, natural-time velocities; not modified) at
+    constant ``omega`` (Omega/omega_n), ``steps`` Newmark steps per mesh period, ``mode`` its
+    ``corrected`` argument (0, 1 or 2 = located). Returns (kernel status, P^N(x) (10,), dP^N/dx (10, 10),
+    info (``N_INFO``), the state at the end of every mesh period (period, 10)); the caller checks the
+    status and finiteness."""
+    from ..sim.integration import NEWTON_MAX_ITER, NEWTON_TOL
+
+    y = np.array(x, dtype=float)
+    jac = np.empty((K.NSTATE, K.NSTATE))
+    pc = np.empty((int(period), K.NSTATE))
+    info = np.empty(N_INFO)
+    status = tangent_map(
+        y, float(omega), int(period), int(steps), consts, int(code), NEWTON_MAX_ITER, NEWTON_TOL, jac, pc, info,
+        int(mode),
+    )  # fmt: skip
+    return int(status), y, jac, info, pc
+
+
 @K.kernel
 def accel_jacobian_array(x, phi, omega, c, dynamic, region, J):
     """Array form of :func:`accel_jacobian` at state ``x`` (10) and mesh phase ``phi`` (for tests).
