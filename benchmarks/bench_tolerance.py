@@ -70,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     # speed, interleaved: the same states, all modes in turn, several rounds
     timed = cases if args.speed_only else cases[:: max(1, len(cases) // 12)]
     total = dict.fromkeys([m for m, _ in modes], 0.0)
+    by_model = {(mo, m): 0.0 for mo in ("constant", "dynamic") for m, _ in modes}
     for _name, tol in modes:  # compile and warm up
         GearSimulator(GearParams(), "dynamic", 192 if tol is None else None, 1.0, tol=tol).advance(2)
     for _ in range(args.repeats):
@@ -78,13 +79,17 @@ def main(argv: list[str] | None = None) -> int:
                 sim = GearSimulator(GearParams(), model, 192 if tol is None else None, w, x0, tol=tol)
                 t0 = time.perf_counter()
                 sim.advance(args.periods)
-                total[name] += time.perf_counter() - t0
+                dt = time.perf_counter() - t0
+                total[name] += dt
+                by_model[model, name] += dt
     base = total["fixed 192"]
     n_per = len(timed) * args.repeats * args.periods
     print(f"\nspeed over {len(timed)} orbits x {args.repeats} rounds x {args.periods} periods, interleaved "
           f"(load average {os.getloadavg()[0]:.1f}):")  # fmt: skip
     for name, _ in modes:
-        print(f"{name:11s} | {n_per / total[name]:9.0f} mesh periods/s | ratio vs fixed 192: {base / total[name]:.2f}")
+        print(f"{name:11s} | {n_per / total[name]:9.0f} mesh periods/s | ratio vs fixed 192: {base / total[name]:.2f}"
+              + "".join(f" | {mo} {by_model[mo, 'fixed 192'] / by_model[mo, name]:.2f}"
+                        for mo in ("constant", "dynamic") if by_model[mo, name] > 0))  # fmt: skip
     return 0
 
 

@@ -117,3 +117,48 @@ def test_crossing_lies_on_the_contact_boundary():
             found += 1
         s, reg, d, bd = s1, reg1, d1, bd1
     assert found >= 2
+
+
+@pytest.mark.parametrize(("model", "omega"), [("constant", 1.5), ("dynamic", 1.0), ("dynamic", 2.6)])
+def test_fast_crossing_agrees_with_the_illinois_search(model, omega):
+    """kernels.crossing_fast_t (the drivers' search: cubic Hermite guess, secant refinement) finds every
+    crossing of a coarse run (27 steps per period) that crossing_t finds, at the same theta to within
+    LOCATE_TOL_STEP, and with the gap there correspondingly small; a step whose ends do not straddle the
+    boundary is handed back (status 0) instead of guessed."""
+    x = _start(model, omega)
+    dyn = model_code(model)
+    k = K.step_consts(C)
+    a = np.zeros(5)
+    work = np.zeros(K.WORK_SIZE)
+    n = 27
+    dphi = 2 * math.pi / n
+    _F, reg, d, bd = K.start_step(x, a, 0.0, omega, C, dyn, work)
+    s = K.load_t(x, a)
+    found = 0
+    for _p in range(3):
+        for j in range(n):
+            ce0, se0, _kk0 = K.excitation(dphi * j, C)
+            ce, se, kk = K.excitation(dphi * (j + 1), C)
+            hc = K.step_coeffs(dphi / omega, k)
+            ok, s1, F, reg1, d1, bd1, sp, cp = K.newmark_try_t(s, s[10:15], ce, se, kk, omega, hc, k, dyn, 12, 1e-10)
+            assert ok
+            if reg1 != reg:
+                side = K.crossing_side_t(reg, reg1)
+                loc, th, sm, wm, Fm, dm, bdm, spm, cpm = K.crossing_t(
+                    s, s1[10:15], reg, side, d - side * bd, dphi * j, dphi, omega, omega, C, k, dyn, 12, 1e-10
+                )
+                st, thf, smf, wmf, Fmf, dmf, bdmf, spmf, cpmf = K.crossing_fast_t(
+                    s, s1, ce0, se0, ce, se, reg, side, dphi * j, dphi, omega, omega, C, k, dyn, 12, 1e-10,
+                    K.LOCATE_TOL_STEP,
+                )  # fmt: skip
+                assert loc and st == 1
+                assert abs(thf - th) <= K.LOCATE_TOL_STEP, (thf, th)
+                g, rate = K.gap_rate_t(smf, *K.excitation(dphi * (j + thf), C)[:2], omega, k, dyn, side)
+                assert abs(g) <= 2 * K.LOCATE_TOL_STEP * abs(rate) * dphi / omega
+                # the same call with an end that does not cross: handed back
+                st0 = K.crossing_fast_t(s, s, ce0, se0, ce0, se0, reg, side, dphi * j, dphi, omega, omega, C, k, dyn,
+                                        12, 1e-10, K.LOCATE_TOL_STEP)[0]  # fmt: skip
+                assert st0 == 0
+                found += 1
+            s, reg, d, bd = s1, reg1, d1, bd1
+    assert found >= 4

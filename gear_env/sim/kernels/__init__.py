@@ -170,14 +170,18 @@ from .mesh import (
 )
 from .newmark import (
     DQ_LINEAR,
+    LOCATE_TOL,
+    LOCATE_TOL_STEP,
     MAX_SPLIT_LEVEL,
     NEWTON_BAD,
     NEWTON_DONE,
     NEWTON_MORE,
     _diverged_t,
     corrector_t,
+    crossing_fast_t,
     crossing_side_t,
     crossing_t,
+    gap_rate_t,
     guess_t,
     load_t,
     newmark_branch_try_t,

@@ -63,6 +63,7 @@ from .mesh import (
 from .newmark import (
     LOCATE_TOL_STEP,
     _diverged_t,
+    crossing_fast_t,
     crossing_side_t,
     crossing_t,
     guess_t,
@@ -502,13 +503,14 @@ MAX_CROSSINGS = 4
 
 @kernel_inline
 def located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dphi, w_a, w_b, ce, se, kk, c, k,
-                   dynamic, max_iter, tol):  # fmt: skip
+                   dynamic, max_iter, tol, ce_a, se_a):  # fmt: skip
     """A Newmark step from s (contact region ``reg0``, Delta ``d0``, B_d ``bd0`` there) whose
     unlocated result (s1, F, region, delta, bd, sp, cp) ends in another region, taken again split at
-    its contact changes (``newmark.crossing_t``; up to :data:`MAX_CROSSINGS`): each part before a
-    crossing with the force on its branch, the rest from the crossing. ``ce, se, kk``: the
-    excitation at the end of the step. Returns (state, F, region, Delta, B_d, sin psi, cos psi,
-    natural time of the step, crossings located); the unlocated result if no crossing is found."""
+    its contact changes (``newmark.crossing_fast_t``, falling back to ``newmark.crossing_t``; up to
+    :data:`MAX_CROSSINGS`): each part before a crossing with the force on its branch, the rest from the
+    crossing. ``ce, se, kk``: the excitation at the end of the step, ``ce_a, se_a`` at its start. Returns
+    (state, F, region, Delta, B_d, sin psi, cos psi, natural time of the step, crossings located); the
+    unlocated result if no crossing is found."""
     h_sum = 0.0
     n = 0
     sa = s
@@ -518,14 +520,22 @@ def located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dp
     pa = phi_a
     dp = dphi
     wa = w_a
+    cea = ce_a
+    sea = se_a
     while region != ra and n < MAX_CROSSINGS:
         side = crossing_side_t(ra, region)
         a1 = (s1[10], s1[11], s1[12], s1[13], s1[14])
-        located, th, sm, wm, _Fm, dm, bdm, _spm, _cpm = crossing_t(
-            sa, a1, ra, side, ga - side * gb, pa, dp, wa, w_b, c, k, dynamic, max_iter, tol, LOCATE_TOL_STEP
+        if n > 0:
+            cea, sea, _kka = excitation(pa, c)
+        fast, th, sm, wm, _Fm, dm, bdm, _spm, _cpm = crossing_fast_t(
+            sa, s1, cea, sea, ce, se, ra, side, pa, dp, wa, w_b, c, k, dynamic, max_iter, tol, LOCATE_TOL_STEP
         )
-        if not located:
-            break
+        if fast == 0:
+            located, th, sm, wm, _Fm, dm, bdm, _spm, _cpm = crossing_t(
+                sa, a1, ra, side, ga - side * gb, pa, dp, wa, w_b, c, k, dynamic, max_iter, tol, LOCATE_TOL_STEP
+            )
+            if not located:
+                break
         hc2 = step_coeffs(2.0 * (1.0 - th) * dp / (wm + w_b), k)
         ok2, s2, F2, region2, delta2, bd2, sp2, cp2 = newmark_try_t(sm, a1, ce, se, kk, w_b, hc2, k, dynamic,
                                                                     max_iter, tol)  # fmt: skip
@@ -590,7 +600,7 @@ def integrate_located_tab(
         if region != reg_prev:
             s1, F, region, delta, bd, sp, cp, h, nloc = located_step_t(
                 s, s1, F, region, delta, bd, sp, cp, reg_prev, d_prev, bd_prev, phi0 + dphi * j, dphi, wa, wb, ce,
-                se, kk, c, k, dynamic, max_iter, tol,
+                se, kk, c, k, dynamic, max_iter, tol, tab[j % n_steps, 0], tab[j % n_steps, 1],
             )  # fmt: skip
             if nloc > 0:
                 split = 1.0

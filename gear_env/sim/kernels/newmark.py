@@ -276,7 +276,7 @@ def newmark_branch_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol, r
 
 LOCATE_MAX_ITER = 60
 """Iterations of the crossing search of :func:`crossing_t` (Illinois; it needs 5-12)."""
-LOCATE_TOL_STEP = 1e-7
+LOCATE_TOL_STEP = 1e-4
 """Crossing tolerance of the integration drivers (``drivers.located_step_t``): a split point off by
 d theta changes the step's end by ~ (jump of the jerk) h^3 d theta, far below the step's error."""
 LOCATE_TOL = 1e-13
@@ -352,6 +352,93 @@ def crossing_t(s, g1, reg0, side, gap0, phi_a, dphi, w_a, w_b, c, k, dynamic, ma
             ga *= 0.5
         tb, gb = tc, gc
     return True, tc, sc, wc, Fc, dc, bdc, spc, cpc
+
+
+@kernel_inline
+def gap_rate_t(s, ce, se, omega, k, dynamic, side):
+    """The gap function Delta - side B_d of the state tuple s (excitation ``ce, se``, :func:`excitation`) and its
+    rate in natural time (Delta' - side dB_d/ds, dB_d/ds = dB/dX_p (X_p' - X_g') + dB/dY_p (Y_p' - Y_g'))."""
+    delta, ddelta, bd, _f, _r, _sp, _cp, db0, db1, _dp0, _dp1 = mesh_t(s, ce, se, omega, k, dynamic)
+    return delta - side * bd, ddelta - side * (db0 * (s[5] - s[7]) + db1 * (s[6] - s[8]))
+
+
+LOCATE_FAST_ITER = 6
+"""Solves of :func:`crossing_fast_t` before it hands the crossing to :func:`crossing_t` (it needs 2-3)."""
+
+
+@kernel_inline
+def crossing_fast_t(s, s1, ce0, se0, ce1, se1, reg0, side, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol,
+                    theta_tol):  # fmt: skip
+    """:func:`crossing_t` of the drivers, with fewer solves: the first guess of theta is the root of the
+    cubic Hermite interpolant of the gap function between the step's start s and its unlocated end s1 (values
+    and rates at both ends, :func:`gap_rate_t`; ``ce0, se0`` and ``ce1, se1``: the excitation there), refined
+    by secant steps on the branch parts
+    (:func:`branch_part_t`; the first step with the interpolant's slope) inside the bracket they build, until
+    theta moves by less than ``theta_tol``. Each refinement is one Newmark solve; the Illinois search of
+    :func:`crossing_t` takes 6-8 (the whole step on the branch first, then 5-7 parts). Returns
+    (status, theta, state at the crossing, omega there, F, Delta, B_d, sin psi, cos psi): status 1 located,
+    0 use :func:`crossing_t` (no sign change of the interpolated gap, a step outside the bracket, a failed
+    solve or no convergence in :data:`LOCATE_FAST_ITER` solves)."""
+    h = 2.0 * dphi / (w_a + w_b)
+    g0, r0 = gap_rate_t(s, ce0, se0, w_a, k, dynamic, side)
+    g1, r1 = gap_rate_t(s1, ce1, se1, w_b, k, dynamic, side)
+    if g0 == 0.0 or g0 * g1 > 0.0:
+        return 0, 1.0, s, w_a, 0.0, 0.0, 0.0, 0.0, 0.0
+    # the cubic Hermite p(t) = g0 (2t^3-3t^2+1) + m0 (t^3-2t^2+t) + g1 (-2t^3+3t^2) + m1 (t^3-t^2): its root in
+    # [0, 1] by Newton's method safeguarded with bisection (no solve)
+    m0 = h * r0
+    m1 = h * r1
+    c3 = 2.0 * g0 + m0 - 2.0 * g1 + m1
+    c2 = -3.0 * g0 - 2.0 * m0 + 3.0 * g1 - m1
+    lo = 0.0
+    hi = 1.0
+    plo = g0
+    th = g0 / (g0 - g1)
+    slope = g1 - g0
+    for _it in range(12):
+        p = ((c3 * th + c2) * th + m0) * th + g0
+        dp = (3.0 * c3 * th + 2.0 * c2) * th + m0
+        if p * plo > 0.0:
+            lo = th
+            plo = p
+        else:
+            hi = th
+        slope = dp
+        nt = th - p / dp if dp != 0.0 else -1.0
+        if not lo < nt < hi:
+            nt = 0.5 * (lo + hi)
+        done = abs(nt - th) <= 1e-12
+        th = nt
+        if done:
+            break
+    a1 = (s1[10], s1[11], s1[12], s1[13], s1[14])
+    ta = 0.0  # bracket of the branch-held gap: ga at ta (theta 0: g0); tb the first part past the crossing
+    ga = g0
+    tb = 2.0
+    tp = -1.0  # the previous part, for the secant
+    gp = 0.0
+    for _it in range(LOCATE_FAST_ITER):
+        ok, sc, wc, Fc, dc, bdc, spc, cpc = branch_part_t(s, a1, th, reg0, phi_a, dphi, w_a, w_b, c, k, dynamic,
+                                                          max_iter, tol)  # fmt: skip
+        if not ok:
+            return 0, th, sc, wc, Fc, dc, bdc, spc, cpc
+        gc = dc - side * bdc
+        if gc * ga > 0.0:
+            ta, ga = th, gc
+        else:
+            tb = th
+        if tp >= 0.0 and gc != gp:
+            slope = (gc - gp) / (th - tp)
+        tp, gp = th, gc
+        nt = th - gc / slope if slope != 0.0 else -1.0
+        if abs(nt - th) <= theta_tol:
+            return 1, th, sc, wc, Fc, dc, bdc, spc, cpc
+        if not ta < nt < min(tb, 1.0):
+            if tb > 1.0:
+                return 0, th, sc, wc, Fc, dc, bdc, spc, cpc
+            nt = 0.5 * (ta + tb)
+        th = nt
+    return 0, th, s, w_a, 0.0, 0.0, 0.0, 0.0, 0.0
 
 
 @kernel_inline
