@@ -10,6 +10,11 @@ summed time of fixed 192 over the summed time of the tol mode (> 1: tol mode fas
 
     python benchmarks/bench_tolerance.py                      # omega step 0.02 (~5 min)
     python benchmarks/bench_tolerance.py --omega-step 0.1 --tols 1e-3 3e-4
+    python benchmarks/bench_tolerance.py --tols 3e-3 --strict-newton   # A/B of the Newton rule of the runs
+
+``--strict-newton`` adds every tol mode a second time with the Newton iteration of the fixed-step drivers
+(``kernels.TOL_DQ_SCALE = 0``: a dynamic-model update is final only below ``DQ_LINEAR`` = 1e-4 b0), so the
+gain of the coarse runs' rule (``kernels.tol_dq_linear``) is measured in the same run.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ import time
 
 import numpy as np
 
+import gear_env.sim.kernels as K
 from gear_env import GearParams, GearSimulator
 from gear_env.sim.reference import reference_poincare
 
@@ -35,6 +41,8 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="no accuracy part: time the modes on period-1 attractors at omega 0.7, 1.0, 1.3, 1.5, 2.6, 2.9",
     )
+    ap.add_argument("--strict-newton", action="store_true",
+                    help="also run every tol mode with the fixed-step drivers' Newton rule (A/B)")  # fmt: skip
     args = ap.parse_args(argv)
     omegas = np.round(np.arange(0.3, 3.0 + 1e-9, args.omega_step), 6)
     if args.speed_only:
@@ -51,11 +59,19 @@ def main(argv: list[str] | None = None) -> int:
             ref = reference_poincare(float(w), model, None, 0, 10, initial_state=x0)
             if np.max(np.abs(ref.states[-1] - ref.states[-2])) <= 1e-5 * (1 + np.max(np.abs(ref.states[-1]))):
                 cases.append((model, float(w), x0, ref.states))
+    dq_default = float(K.TOL_DQ_SCALE)
     modes = [("fixed 192", None)] + [(f"tol {t:g}", t) for t in args.tols]
+    if args.strict_newton:
+        modes += [(f"tol {t:g} strict", t) for t in args.tols]
+
+    def newton_rule(name: str) -> None:
+        K.TOL_DQ_SCALE = 0.0 if name.endswith("strict") else dq_default  # read by integration.integrate
+
     errs: dict[str, list[float]] = {m: [] for m, _ in modes}
     steps: dict[str, list[float]] = {m: [] for m, _ in modes}
     for model, w, x0, ref in [] if args.speed_only else cases:
         for name, tol in modes:
+            newton_rule(name)
             sim = GearSimulator(GearParams(), model, 192 if tol is None else None, w, x0, tol=tol)
             iv = sim.advance(10)
             errs[name].append(float(np.max(np.abs(iv.poincare[:, :10] - ref))))
@@ -65,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
         print("mode        | median error | p95 error | max error | Newmark steps per period (mean)")
     for name, _ in [] if args.speed_only else modes:
         e = np.array(errs[name])
-        print(f"{name:11s} | {np.median(e):12.2e} | {np.percentile(e, 95):9.2e} | {np.max(e):9.2e} | "
+        print(f"{name:16s} | {np.median(e):12.2e} | {np.percentile(e, 95):9.2e} | {np.max(e):9.2e} | "
               f"{np.mean(steps[name]):.0f}")  # fmt: skip
     # speed, interleaved: the same states, all modes in turn, several rounds
     timed = cases if args.speed_only else cases[:: max(1, len(cases) // 12)]
@@ -76,18 +92,20 @@ def main(argv: list[str] | None = None) -> int:
     for _ in range(args.repeats):
         for model, w, x0, _ref in timed:
             for name, tol in modes:
+                newton_rule(name)
                 sim = GearSimulator(GearParams(), model, 192 if tol is None else None, w, x0, tol=tol)
                 t0 = time.perf_counter()
                 sim.advance(args.periods)
                 dt = time.perf_counter() - t0
                 total[name] += dt
                 by_model[model, name] += dt
+    newton_rule("")
     base = total["fixed 192"]
     n_per = len(timed) * args.repeats * args.periods
     print(f"\nspeed over {len(timed)} orbits x {args.repeats} rounds x {args.periods} periods, interleaved "
           f"(load average {os.getloadavg()[0]:.1f}):")  # fmt: skip
     for name, _ in modes:
-        print(f"{name:11s} | {n_per / total[name]:9.0f} mesh periods/s | ratio vs fixed 192: {base / total[name]:.2f}"
+        print(f"{name:16s} | {n_per / total[name]:9.0f} mesh periods/s | ratio vs fixed 192: {base / total[name]:.2f}"
               + "".join(f" | {mo} {by_model[mo, 'fixed 192'] / by_model[mo, name]:.2f}"
                         for mo in ("constant", "dynamic") if by_model[mo, name] > 0))  # fmt: skip
     return 0

@@ -95,3 +95,31 @@ def test_simulate_batch_with_tol_is_the_single_simulator_per_system():
         simulate_batch([1.0], steps_per_period=64, tol=1e-4)
     with pytest.raises(ValueError, match="tol must be a number in"):
         simulate_batch([1.0], tol=0.5)
+
+
+@pytest.mark.parametrize("omega", [0.3, 1.0, 2.6])
+def test_coarse_newton_rule_moves_the_result_far_below_tol(omega):
+    """The runs of integrate_tol end the dynamic model's Newton iteration with the Taylor update when it moves
+    the positions by less than sqrt(err_tol / N) (kernels.tol_dq_linear) instead of DQ_LINEAR. Over 10 mesh
+    periods at tol 3e-3 (N of 20-60) the result moves by less than 1e-5 tol against the strict rule
+    (measured <= 5e-9 b0 per period), while the coarse runs do take the looser rule (dq_lin > DQ_LINEAR)."""
+    from gear_env.sim import kernels as K
+    from gear_env.sim.params import model_code
+
+    start = GearSimulator(GearParams(), "dynamic", 512, omega)
+    start.advance(300)
+    c = K.readonly(np.ascontiguousarray(GearParams().consts))
+    out = {}
+    for scale in (0.0, K.TOL_DQ_SCALE):
+        x = start.state
+        pc = np.zeros((10, K.N_PC))
+        st = np.zeros(K.N_STATS)
+        cost = np.zeros(10)
+        res = K.integrate_tol(x, np.zeros(5), omega, omega, 10, 24, c, model_code("dynamic"), pc, st, 12, 1e-10,
+                              3e-3, cost, scale)  # fmt: skip
+        assert res[0] == K.OK
+        out[scale] = (pc[:, :10].copy(), cost.copy())
+    n_max = int(np.max(out[K.TOL_DQ_SCALE][1])) // 3
+    assert K.tol_dq_linear(3e-3, 2 * n_max, K.TOL_DQ_SCALE) > K.DQ_LINEAR
+    assert K.tol_dq_linear(3e-3, 64, 0.0) == K.DQ_LINEAR
+    assert np.max(np.abs(out[0.0][0] - out[K.TOL_DQ_SCALE][0])) < 1e-5 * 3e-3

@@ -124,7 +124,21 @@ def integrate(
         if err_tol is not None:
             cost = np.empty(periods)
             status, done, el, n_last = K.integrate_tol(
-                x, a, omega0, omega1, periods, n_start, c, dynamic, poincare, stats, max_iter, tol, err_tol, cost
+                x,
+                a,
+                omega0,
+                omega1,
+                periods,
+                n_start,
+                c,
+                dynamic,
+                poincare,
+                stats,
+                max_iter,
+                tol,
+                err_tol,
+                cost,
+                float(K.TOL_DQ_SCALE),
             )
             return IntervalRun(status, done, el, poincare, stats, None, n_last)
         status, done, el = K.integrate_stats_lazy(

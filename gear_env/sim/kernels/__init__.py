@@ -48,11 +48,13 @@ from ..params import (
     C_XI_M,
 )
 from .drivers import (
+    TOL_DQ_SCALE,
     _excitation_table,
     _integrate_stats_batch,
     _poincare_store_t,
     _record_row_t,
     integrate_located,
+    integrate_located_tab,
     integrate_record,
     integrate_stats,
     integrate_stats_batch,
@@ -62,6 +64,7 @@ from .drivers import (
     split_resume,
     start_step,
     stats_segment,
+    tol_dq_linear,
 )
 from .jit import kernel, kernel_inline, readonly, runtime_int, runtime_true
 from .layout import (

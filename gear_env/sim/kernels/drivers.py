@@ -61,6 +61,7 @@ from .mesh import (
     with_load_t,
 )
 from .newmark import (
+    DQ_LINEAR,
     LOCATE_TOL_STEP,
     _diverged_t,
     crossing_fast_t,
@@ -503,12 +504,13 @@ MAX_CROSSINGS = 4
 
 @kernel_inline
 def located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dphi, w_a, w_b, ce, se, kk, c, k,
-                   dynamic, max_iter, tol, ce_a, se_a):  # fmt: skip
+                   dynamic, max_iter, tol, ce_a, se_a, dq_lin):  # fmt: skip
     """A Newmark step from s (contact region ``reg0``, Delta ``d0``, B_d ``bd0`` there) whose
     unlocated result (s1, F, region, delta, bd, sp, cp) ends in another region, taken again split at
     its contact changes (``newmark.crossing_fast_t``, falling back to ``newmark.crossing_t``; up to
     :data:`MAX_CROSSINGS`): each part before a crossing with the force on its branch, the rest from the
-    crossing. ``ce, se, kk``: the excitation at the end of the step, ``ce_a, se_a`` at its start. Returns
+    crossing. ``ce, se, kk``: the excitation at the end of the step, ``ce_a, se_a`` at its start;
+    ``dq_lin`` as in ``newmark.newton_iter_t``. Returns
     (state, F, region, Delta, B_d, sin psi, cos psi, natural time of the step, crossings located); the
     unlocated result if no crossing is found."""
     h_sum = 0.0
@@ -538,7 +540,7 @@ def located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dp
                 break
         hc2 = step_coeffs(2.0 * (1.0 - th) * dp / (wm + w_b), k)
         ok2, s2, F2, region2, delta2, bd2, sp2, cp2 = newmark_try_t(sm, a1, ce, se, kk, w_b, hc2, k, dynamic,
-                                                                    max_iter, tol)  # fmt: skip
+                                                                    max_iter, tol, dq_lin)  # fmt: skip
         if not ok2:
             break
         h_sum += 2.0 * th * dp / (wa + wm)
@@ -554,19 +556,20 @@ def integrate_located(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poinca
     """:func:`integrate_located_tab` with the excitation table of the period computed here."""
     return integrate_located_tab(
         x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats,
-        _excitation_table(phi0, n_steps, c),
+        _excitation_table(phi0, n_steps, c), DQ_LINEAR,
     )  # fmt: skip
 
 
 @kernel
 def integrate_located_tab(
-    x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab
+    x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab, dq_lin
 ):
     """:func:`integrate_stats` (same arguments and results) with every contact change located and
     the step split there (:func:`located_step_t`), so that no contact change lies inside a step: the
     Poincare map is then smooth in the state and omega, and its error has the expansion in h^2,
     h^4, ... of a smooth problem (what :func:`integrate_tol` extrapolates). ``stats[ST_SPLITS]``
-    counts the steps split at a contact change (and any split by the Newton fallback)."""
+    counts the steps split at a contact change (and any split by the Newton fallback). ``dq_lin``: as in
+    ``newmark.newton_iter_t`` (:data:`newmark.DQ_LINEAR` for the exact Newmark solution)."""
     k = step_consts(c)
     total = n_periods * n_steps
     dphi = TWO_PI / n_steps
@@ -586,7 +589,8 @@ def integrate_located_tab(
         wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
         m = (j + 1) % n_steps
         ce, se, kk = tab[m, 0], tab[m, 1], tab[m, 2]
-        ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(s, g, ce, se, kk, wb, hc, k, dynamic, max_iter, tol)
+        ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(s, g, ce, se, kk, wb, hc, k, dynamic, max_iter, tol,
+                                                             dq_lin)  # fmt: skip
         split = 0.0
         if not ok:
             st, s1, F, region, delta, bd, sp, cp, _sp = split_step_t(s, phi0 + dphi * j, dphi, wa, wb, c, k, dynamic,
@@ -600,7 +604,7 @@ def integrate_located_tab(
         if region != reg_prev:
             s1, F, region, delta, bd, sp, cp, h, nloc = located_step_t(
                 s, s1, F, region, delta, bd, sp, cp, reg_prev, d_prev, bd_prev, phi0 + dphi * j, dphi, wa, wb, ce,
-                se, kk, c, k, dynamic, max_iter, tol, tab[j % n_steps, 0], tab[j % n_steps, 1],
+                se, kk, c, k, dynamic, max_iter, tol, tab[j % n_steps, 0], tab[j % n_steps, 1], dq_lin,
             )  # fmt: skip
             if nloc > 0:
                 split = 1.0
@@ -630,10 +634,28 @@ TOL_N_MAX = 8192
 """Most steps per mesh period of the coarse run of :func:`integrate_tol`."""
 TOL_SAFETY = 0.5
 """:func:`integrate_tol` aims the next period's estimate at TOL_SAFETY * err_tol."""
+TOL_DQ_SCALE = 1.0
+"""Default ``dq_scale`` of :func:`integrate_tol` (0: the Newton iteration of the fixed-step drivers)."""
+
+
+@kernel_inline
+def tol_dq_linear(err_tol, n, scale):
+    """``dq_lin`` (b0) of a run of :func:`integrate_tol` with N steps per mesh period at error ``err_tol``:
+    ``scale`` sqrt(err_tol / N), at least :data:`newmark.DQ_LINEAR`.
+
+    Why it is safe: the dynamic model's Newton iteration ends with a first-order Taylor update of the
+    geometry (``newmark.newton_iter_t``), whose neglected term is about 1e-3 dq^2 per step (curvature of
+    B_d(q) ~ 1e-3 per b0); at dq = sqrt(err_tol / N) that is 1e-3 err_tol / N per step, 1e-3 err_tol per
+    period at most. Measured (N = 27, err_tol = 3e-3, dynamic omega 0.3-2.6): the period's result moves by
+    <= 5e-9 b0 against a discretisation error of 2e-3 to 8e-3, and the coarse run takes 1.2-1.4x less time
+    (at large steps the first update moves the positions by more than DQ_LINEAR, so the strict rule
+    evaluates the geometry a second time)."""
+    return max(DQ_LINEAR, scale * math.sqrt(err_tol / n))
 
 
 @kernel
-def integrate_tol(x, a, w0, w1, n_periods, n_start, c, dynamic, poincare, stats, max_iter, tol, err_tol, cost):
+def integrate_tol(x, a, w0, w1, n_periods, n_start, c, dynamic, poincare, stats, max_iter, tol, err_tol, cost,
+                  dq_scale):  # fmt: skip
     """Integrate ``n_periods`` mesh periods from mesh phase 0 (omega linear in time from w0 to w1
     over the interval) with the error per mesh period controlled: ``err_tol`` (b0 units; the 10
     states, velocities per unit natural time).
@@ -646,7 +668,9 @@ def integrate_tol(x, a, w0, w1, n_periods, n_start, c, dynamic, poincare, stats,
     extrapolation). The next period starts with N scaled by sqrt(TOL_SAFETY err_tol / err).
     Poincare samples are the extrapolated states at phase 2 pi k (the other columns from the 2N
     run); ``stats`` those of the 2N runs. ``cost`` (n_periods,) receives the Newmark steps of each
-    period (both runs and repeats). Returns (status, periods done, natural time elapsed, N last).
+    period (both runs and repeats). ``dq_scale``: the Newton iteration's final-update rule of the runs
+    (:func:`tol_dq_linear`; :data:`TOL_DQ_SCALE` by default, 0 for the strict rule of the fixed-step
+    drivers). Returns (status, periods done, natural time elapsed, N last).
     """
     n = max(TOL_N_MIN, n_start)
     _stats_init(stats)
@@ -676,12 +700,42 @@ def integrate_tol(x, a, w0, w1, n_periods, n_start, c, dynamic, poincare, stats,
                 tab2 = _excitation_table(0.0, 2 * n, c)
                 n_tab = n
             st, _d, _e = integrate_located_tab(
-                x1, a1, 0.0, wa, wb, 1, n, c, dynamic, pc1, st1, max_iter, tol, True, tab1
+                x1,
+                a1,
+                0.0,
+                wa,
+                wb,
+                1,
+                n,
+                c,
+                dynamic,
+                pc1,
+                st1,
+                max_iter,
+                tol,
+                True,
+                tab1,
+                tol_dq_linear(err_tol, n, dq_scale),
             )
             if st != OK:
                 return st, p, el, n
             st, _d, el2 = integrate_located_tab(
-                x2, a2, 0.0, wa, wb, 1, 2 * n, c, dynamic, pc2, st2, max_iter, tol, True, tab2
+                x2,
+                a2,
+                0.0,
+                wa,
+                wb,
+                1,
+                2 * n,
+                c,
+                dynamic,
+                pc2,
+                st2,
+                max_iter,
+                tol,
+                True,
+                tab2,
+                tol_dq_linear(err_tol, 2 * n, dq_scale),
             )
             if st != OK:
                 return st, p, el, n

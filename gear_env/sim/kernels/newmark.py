@@ -129,6 +129,10 @@ def newton_delta_t(a, t, mesh, ce, se, kk, hc, k, dynamic, friction=True):
     return rank_one_solve_t(r0, r1, r2, r3, r4, w0, w1, w2, w3, u0, u1, u2, u3, u4, idd0, idd2) + (F,)
 
 
+DQ_LINEAR = 1e-4
+"""Dynamic model: a Newton update that moves the positions by less than this (b0) is final (the
+default of :func:`newton_iter_t`'s ``dq_lin``; the fixed-step drivers use it)."""
+
 NEWTON_MORE = 0  # newton_iter_t: iterate again
 NEWTON_DONE = 1  # newton_iter_t: converged, (t, a) is the new state
 NEWTON_BAD = 2  # newton_iter_t: non-finite update
@@ -156,7 +160,9 @@ def newton_start_t(s, g, ce, se, w_b, hc, k, dynamic):
 
 
 @kernel_inline
-def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_only=False, friction=True):
+def newton_iter_t(
+    pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_only=False, friction=True, dq_lin=DQ_LINEAR
+):
     """One semismooth Newton iteration of a Newmark step (no loop inside, so a batch of them
     vectorises across systems, see ``batch_kernels``).
 
@@ -167,7 +173,9 @@ def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_o
     an iteration that the Taylor update does not finish returns NEWTON_MORE without evaluating
     the geometry again (the batch kernel redoes such steps with the scalar path). With
     ``friction=False`` the friction extension is ignored (no tanh call; the batch kernel redoes
-    the steps of systems with friction).
+    the steps of systems with friction). ``dq_lin`` (b0): a dynamic-model update that moves the
+    positions by less than this is final (:data:`DQ_LINEAR`; the error-controlled driver passes a
+    larger one at coarse steps, ``drivers.tol_dq_linear``).
     """
     h, bh2, gh, hh, h1, idd0, idd2 = hc
     a0, a1, a2, a3, a4 = a
@@ -183,7 +191,7 @@ def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_o
     if not math.isfinite(dmax):
         return NEWTON_BAD, an, t, mesh, (F, region, delta, bd, sp, cp)
     t = corrector_t(pv, a0, a1, a2, a3, a4, bh2, gh)
-    if dynamic != 0 and bh2 * dmax <= DQ_LINEAR:
+    if dynamic != 0 and bh2 * dmax <= dq_lin:
         # Final update of the dynamic model: the geometry at the new positions is the
         # first-order Taylor expansion of eqs. (5)-(8) about the previous iterate (the
         # remainder, curvature of B_d(q) ~1e-3 per b0 times |dq|^2 <= 1e-8, is below 1e-11),
@@ -205,28 +213,27 @@ def newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, taylor_o
     # of the last Newton update, bh2 * dmax, is below DQ_LINEAR, where the neglected
     # quadratic term (curvature of B_d(q) ~ 1e-3 per b0 times DQ_LINEAR^2) is below 1e-11.
     if region == old_region and (
-        dynamic == 0
-        or bh2 * dmax <= DQ_LINEAR
-        or dmax <= tol * (1.0 + max(abs(a0), abs(a1), abs(a2), abs(a3), abs(a4)))
+        dynamic == 0 or bh2 * dmax <= dq_lin or dmax <= tol * (1.0 + max(abs(a0), abs(a1), abs(a2), abs(a3), abs(a4)))
     ):
         return NEWTON_DONE, an, t, mesh, (F, region, delta, bd, sp, cp)
     return NEWTON_MORE, an, t, mesh, (F, region, delta, bd, sp, cp)
 
 
 @kernel_inline
-def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
+def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol, dq_lin=DQ_LINEAR):
     """Attempt one Newmark step on the state tuple s = (q (5), v (5), a (5)).
 
     ``hc`` = :func:`step_coeffs` of the step, ``(ce, se, kk)`` the excitation, ``w_b`` the
     meshing frequency at its end and ``g`` Newton's starting guess of the end-of-step
-    acceleration. Returns (converged, new state tuple, F, region, Delta, B_d, sin psi, cos psi);
-    on failure the state tuple returned is the input one.
+    acceleration; ``dq_lin`` as in :func:`newton_iter_t`. Returns (converged, new state tuple, F,
+    region, Delta, B_d, sin psi, cos psi); on failure the state tuple returned is the input one.
     """
     pv, t, mesh = newton_start_t(s, g, ce, se, w_b, hc, k, dynamic)
     a = (g[0], g[1], g[2], g[3], g[4])
     fin = (0.0, 0, 0.0, 0.0, 0.0, 0.0)
     for _it in range(max_iter):
-        code, a, t, mesh, fin = newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol)
+        code, a, t, mesh, fin = newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, False, True,
+                                              dq_lin)  # fmt: skip
         if code == NEWTON_DONE:
             s1 = (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], a[0], a[1], a[2], a[3], a[4])
             return True, s1, fin[0], fin[1], fin[2], fin[3], fin[4], fin[5]
@@ -455,9 +462,6 @@ def split_at_t(s, g1, theta, reg0, phi_a, dphi, w_a, w_b, ce, se, kk, c, k, dyna
     ok, s2, F, region, delta, bd, sp, cp = newmark_try_t(sm, g1, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol)
     return ok, sm, wm, s2, F, region, delta, bd, sp, cp
 
-
-DQ_LINEAR = 1e-4
-"""Dynamic model: a Newton update that moves the positions by less than this (b0) is final."""
 
 MAX_SPLIT_LEVEL = 6
 
