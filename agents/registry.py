@@ -261,6 +261,7 @@ def resolve_policy(spec: str, config: Any = None, env_id: str | None = None, all
                     f"the pretrained policy of {env_id!r} takes {pol.observation_space.shape[0]} observation "
                     f"features, this configuration gives {n_obs}"
                 )
+            pol.adapt_to(config)
         return pol
     if s == "pretrained":
         d = pretrained_dir()

@@ -166,7 +166,12 @@ def export_policy(
 
 
 class ShippedPolicy(BasePolicy):
-    """A shipped policy: frozen observation normalisation + the SB3 actor-critic network."""
+    """A shipped policy: frozen observation normalisation + the SB3 actor-critic network.
+
+    ``action_adapter`` (set by :meth:`adapt_to`): re-expresses the network's actions for a task configuration
+    whose actions mean something else than those it was trained on (:class:`agents.trained.ActionAdapter`)."""
+
+    action_adapter: Any = None
 
     def __init__(self, folder: str | Path, name: str = "pretrained"):
         import torch
@@ -239,7 +244,20 @@ class ShippedPolicy(BasePolicy):
                 f"got {obs.shape[-1]}"
             )
         a, _ = self.policy.predict(self.normalize(obs), deterministic=deterministic)
+        if self.action_adapter is not None:
+            a = self.action_adapter(obs, a)
         return a, state
+
+    def adapt_to(self, config: Any) -> ShippedPolicy:
+        """Drive the task configuration ``config`` (a ``GearSpeedConfig`` of this policy's task): when its action
+        settings (mode, ranges, rate, reference filter) differ from ``env_config`` of policy.json, the actions
+        go through an :class:`agents.trained.ActionAdapter` (same next omega). Returns self."""
+        from .envs import make_config
+        from .trained import ActionAdapter
+
+        trained = make_config(self.env_id, self.meta["env_config"])
+        self.action_adapter = ActionAdapter(trained, config) if ActionAdapter.needed(trained, config) else None
+        return self
 
 
 def load_policy(folder: str | Path, name: str = "pretrained") -> ShippedPolicy:

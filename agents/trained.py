@@ -67,9 +67,11 @@ class ActionAdapter:
     """Re-express actions meant for one action mode in another (same plant, same next omega).
 
     A policy trained with ``action_mode="target"`` (its action is a speed set-point) drives an
-    environment in ``"delta"`` mode (or the reverse): the intended next omega is computed with the
-    training settings and converted to the action that gives the same next omega under the
-    evaluation settings. Omega is read from the raw observation (entry 0)."""
+    environment in ``"delta"`` mode (or the reverse), or one trained with a speed limit, another omega or
+    action range, rate limit or reference filter drives the task's defaults: the intended next omega is
+    computed with the training settings (filter and rate limit included) and converted to the action that
+    gives the same next omega under the evaluation settings (the set-point whose filtered step lands on it).
+    Omega and the demand are read from the raw observation."""
 
     def __init__(self, train_cfg: Any, eval_cfg: Any):
         if train_cfg.action_mode == "limit" and eval_cfg.demand is None:
@@ -82,7 +84,7 @@ class ActionAdapter:
 
     @staticmethod
     def needed(train_cfg: Any, eval_cfg: Any) -> bool:
-        keys = ("action_mode", "omega_min", "omega_max", "max_domega", "action_range")
+        keys = ("action_mode", "omega_min", "omega_max", "max_domega", "action_range", "reference_filter")
         return any(getattr(train_cfg, k) != getattr(eval_cfg, k) for k in keys)
 
     def __call__(self, observation: np.ndarray, actions: np.ndarray) -> np.ndarray:
@@ -92,21 +94,24 @@ class ActionAdapter:
         a = np.clip(np.asarray(actions, float).reshape(len(obs2)), -1.0, 1.0)
         tr, ev = self.tr, self.ev
         w = ev.omega_min + 0.5 * (obs2[:, 0] + 1.0) * (ev.omega_max - ev.omega_min)
+        # the next omega the action means under the training settings (env_kernels.decode_actions) ...
         if tr.action_mode == "delta":
-            target = w + a * tr.max_domega
+            nxt = w + a * tr.max_domega
         else:
             tlo, thi = action_bounds(tr)
-            target = tlo + 0.5 * (a + 1.0) * (thi - tlo)
+            sp = tlo + 0.5 * (a + 1.0) * (thi - tlo)
             if tr.action_mode == "limit":  # a speed limit: the drive follows the demand (observed) under it
                 demand = ev.omega_min + 0.5 * (obs2[:, OBS_DEMAND] + 1.0) * (ev.omega_max - ev.omega_min)
-                target = np.minimum(target, demand)
-            target = np.clip(target, w - tr.max_domega, w + tr.max_domega)
-        target = np.clip(target, ev.omega_min, ev.omega_max)
+                sp = np.minimum(sp, demand)
+            nxt = np.clip(w + tr.reference_filter * (sp - w), w - tr.max_domega, w + tr.max_domega)
+        nxt = np.clip(nxt, ev.omega_min, ev.omega_max)
+        # ... and the action that moves there under the evaluation settings (the set-point whose filtered step
+        # lands on it)
         if ev.action_mode == "delta":
-            out = (target - w) / ev.max_domega
+            out = (nxt - w) / ev.max_domega
         else:
             elo, ehi = action_bounds(ev)
-            out = 2.0 * (target - elo) / (ehi - elo) - 1.0
+            out = 2.0 * (w + (nxt - w) / ev.reference_filter - elo) / (ehi - elo) - 1.0
         out = np.clip(out, -1.0, 1.0).astype(np.float32).reshape(-1, 1)
         return out[0] if single else out
 
@@ -421,7 +426,7 @@ def load_trained_policy(
     its ``_vecnormalize.npz``). If ``env_config`` is given, the environment it describes must have
     the observation and action spaces the model was trained on; otherwise a
     :class:`RunFolderError` explains the mismatch. A model trained in the other action mode (or
-    with another omega range or rate) is wrapped in an :class:`ActionAdapter`."""
+    with another omega range, rate or reference filter) is wrapped in an :class:`ActionAdapter`."""
     import torch
 
     torch.set_num_threads(1)

@@ -198,6 +198,28 @@ def test_action_adapter_gives_the_same_next_omega_in_either_mode(fast_cfg):
         assert info_t["omega"] == pytest.approx(info_d["omega"], abs=1e-5)
 
 
+def test_action_adapter_carries_a_limit_policy_across_reference_filters():
+    """A policy trained on GearSpeedDemand-v0 with a speed-limit action and no reference filter drives the default
+    task (set-point, filter 0.1) to the same omega, step by step: its holds land exactly, its descents run at the
+    full rate (the adapter inverts the evaluation's filter; it used to pass the set-point through unfiltered)."""
+    from agents.envs import make_config
+    from agents.trained import ActionAdapter
+
+    small = {"steps_per_period": 16, "periods_per_step": 4, "warmup_periods": 8, "max_steps": 12}
+    ev = make_config("GearSpeedDemand-v0", small)
+    tr = ev.replace(action_mode="limit", action_range=(1.15, 1.8), reference_filter=1.0)
+    assert ev.reference_filter == 0.1 and ActionAdapter.needed(tr, ev)
+    env_t, env_e = GearSpeedEnv(tr), GearSpeedEnv(ev)
+    ot, _ = env_t.reset(seed=3, options={"omega": 2.0})
+    oe, _ = env_e.reset(seed=3, options={"omega": 2.0})
+    adapt = ActionAdapter(tr, ev)
+    for a in (-1.0, -1.0, -0.5, -1.0, 1.0, -0.2):
+        ot, *_, info_t = env_t.step(np.array([a], np.float32))
+        oe, *_, info_e = env_e.step(adapt(oe, np.array([a], np.float32)))
+        assert info_e["omega"] == pytest.approx(info_t["omega"], abs=1e-5)
+    assert info_t["omega"] != pytest.approx(2.0, abs=0.3)  # it moved: the descent was at the full rate
+
+
 def test_oracle_with_a_demand_meets_it_when_the_shortfall_costs_more():
     # synthetic map peaked at omega = 1: R = -0.5 (w - 1)^2; the demand steps from 1.0 to 1.5 at
     # step 10. Shortfall costs w_demand/omega_max = 2/3 per unit of omega, more than the map loses

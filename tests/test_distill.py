@@ -162,6 +162,11 @@ def test_the_zoo_entry_is_the_distillation_recipe_for_gear_env_train_too(tmp_pat
     add_arguments(p)
     opts = options_from_args(p.parse_args(["--out", str(tmp_path / "r"), "--env", ENV, "--hyperparams", str(conf)]))
     assert (opts.distill, opts.timesteps, opts.ppo["net_arch"]) == (12, 0, [128, 128])
+    # the student learns a speed limit over [1.15, 1.8] without a reference filter (docs/RESULTS.md)
+    limit = {"action_mode": "limit", "action_range": [1.15, 1.8], "reference_filter": 1.0}
+    assert {k: opts.env_config[k] for k in limit} == limit
+    hard = load_zoo_entry(conf, "GearSpeedDemandHard-v0")
+    assert hard["env_kwargs"] == {} and hard["distill"] == {"iterations": 12}
     bad = tmp_path / "bad.yml"
     bad.write_text(f"{ENV}:\n  callback: stable_baselines3.common.callbacks.CheckpointCallback\n")
     with pytest.raises(ValueError, match="runs only agents.distill.DistillCallback"):
