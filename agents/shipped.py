@@ -169,7 +169,9 @@ class ShippedPolicy(BasePolicy):
     """A shipped policy: frozen observation normalisation + the SB3 actor-critic network.
 
     ``action_adapter`` (set by :meth:`adapt_to`): re-expresses the network's actions for a task configuration
-    whose actions mean something else than those it was trained on (:class:`agents.trained.ActionAdapter`)."""
+    whose actions mean something else than those it was trained on (:class:`agents.trained.ActionAdapter`).
+    A loaded policy acts on its task's defaults (``gym.make(env_id)``): one trained with other action settings
+    (GearSpeedDemand-v0's, which learned a speed limit) is adapted to them at load; :meth:`adapt_to` retargets it."""
 
     action_adapter: Any = None
 
@@ -224,6 +226,12 @@ class ShippedPolicy(BasePolicy):
                 float(n["epsilon"]),
                 float(n["clip_obs"]),
             )
+        from .envs import GEAR_ENV_IDS
+
+        if self.env_id in GEAR_ENV_IDS:  # act on gym.make(env_id) as it is
+            from .envs import make_config
+
+            self.adapt_to(make_config(self.env_id, None))
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         """The observation as the network saw it in training (VecNormalize, frozen)."""

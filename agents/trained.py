@@ -79,6 +79,13 @@ class ActionAdapter:
                 'a policy trained with action_mode "limit" sets a speed limit under a demand: evaluate it on a task '
                 "with a demand (the evaluation configuration has demand None)"
             )
+        delays = (getattr(train_cfg, "action_delay", 0), getattr(eval_cfg, "action_delay", 0))
+        if any(delays):
+            raise ValueError(
+                f"actions cannot be re-expressed across action settings under an actuator dead time (action_delay "
+                f"{delays[0]} in training, {delays[1]} here): an action reaches the drive steps later, from a speed "
+                "the adapter does not know; evaluate the policy with the action settings it was trained with"
+            )
         self.tr = train_cfg
         self.ev = eval_cfg
 

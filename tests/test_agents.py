@@ -218,6 +218,9 @@ def test_action_adapter_carries_a_limit_policy_across_reference_filters():
         oe, *_, info_e = env_e.step(adapt(oe, np.array([a], np.float32)))
         assert info_e["omega"] == pytest.approx(info_t["omega"], abs=1e-5)
     assert info_t["omega"] != pytest.approx(2.0, abs=0.3)  # it moved: the descent was at the full rate
+    # under a dead time the next speed is not known to a stateless adapter: refused, naming the setting
+    with pytest.raises(ValueError, match="action_delay 1 in training, 1 here"):
+        ActionAdapter(tr.replace(action_delay=1), ev.replace(action_delay=1))
 
 
 def test_oracle_with_a_demand_meets_it_when_the_shortfall_costs_more():

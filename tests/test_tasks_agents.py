@@ -114,3 +114,42 @@ def test_shipped_policy_roundtrip(tmp_path):
     (tmp_path / "busy" / "notes.txt").write_text("mine")
     with pytest.raises(ValueError, match="not a previous policy export"):
         export_policy(model, venv, "Pendulum-v1", {}, tmp_path / "busy")
+
+
+def test_shipped_demand_policy_acts_on_the_task_as_registered():
+    """GearSpeedDemand-v0's shipped policy learned a speed limit over [1.15, 1.8] (no reference filter). Loaded
+    alone (``load_policy``), it drives ``gym.make("GearSpeedDemand-v0")`` as ``--policy pretrained`` does: its
+    actions are adapted to the task's set-point action (filter 0.1) at load, and on the limit environment it
+    was trained on (``adapt_to``) the same episode reaches the same speeds."""
+    pytest.importorskip("stable_baselines3")
+    import gymnasium as gym
+
+    import gear_env  # noqa: F401  (registers the ids)
+    from agents.envs import make_config
+    from agents.registry import pretrained_dir, resolve_policy
+    from agents.shipped import load_policy
+
+    env_id = "GearSpeedDemand-v0"
+    pol = load_policy(pretrained_dir(env_id))
+    assert pol.meta["env_config"]["action_mode"] == "limit" and pol.action_adapter is not None
+    via_registry = resolve_policy("pretrained", make_config(env_id, None), env_id=env_id)
+    limit_cfg = make_config(env_id, {k: pol.meta["env_config"][k] for k in ("action_mode", "action_range",
+                                                                             "reference_filter")})  # fmt: skip
+    native = load_policy(pretrained_dir(env_id)).adapt_to(limit_cfg)
+    assert native.action_adapter is None
+    small = {"max_steps": 12}
+    envs = [gym.make(env_id, **small), gym.make(env_id, **small),
+            gym.make(env_id, **small, **{k: limit_cfg.__dict__[k] for k in ("action_mode", "action_range",
+                                                                            "reference_filter")})]  # fmt: skip
+    omegas = []
+    for env, p in zip(envs, (pol, via_registry, native)):
+        obs, _ = env.reset(seed=700_007)  # a worn pair: the limit holds the floor 1.150
+        w = []
+        for _ in range(12):
+            a, _ = p.predict(obs, deterministic=True)
+            obs, _r, term, trunc, info = env.step(a)
+            w.append(info["omega"])
+        omegas.append(np.array(w))
+    assert np.array_equal(omegas[0], omegas[1])
+    assert omegas[2] == pytest.approx(omegas[0], abs=1e-6)
+    assert omegas[0][-1] == pytest.approx(1.15, abs=1e-6)
