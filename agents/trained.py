@@ -86,8 +86,12 @@ class ActionAdapter:
                 f"{delays[0]} in training, {delays[1]} here): an action reaches the drive steps later, from a speed "
                 "the adapter does not know; evaluate the policy with the action settings it was trained with"
             )
+        from gear_env.envs.env_terms import ACTION_CODES
+
         self.tr = train_cfg
         self.ev = eval_cfg
+        self.settings = train_cfg.TERMS.settings_vector(train_cfg)  # for env_kernels.decode_actions
+        self.mode = ACTION_CODES[train_cfg.action_mode]
 
     @staticmethod
     def needed(train_cfg: Any, eval_cfg: Any) -> bool:
@@ -98,19 +102,18 @@ class ActionAdapter:
         obs = np.asarray(observation, float)
         single = obs.ndim == 1
         obs2 = obs[None, :] if single else obs
+        from gear_env.envs.env_kernels import decode_actions
+
         a = np.clip(np.asarray(actions, float).reshape(len(obs2)), -1.0, 1.0)
         tr, ev = self.tr, self.ev
         w = ev.omega_min + 0.5 * (obs2[:, 0] + 1.0) * (ev.omega_max - ev.omega_min)
-        # the next omega the action means under the training settings (env_kernels.decode_actions) ...
-        if tr.action_mode == "delta":
-            nxt = w + a * tr.max_domega
+        # the next omega the action means under the training settings: the environment's own decoder
+        if tr.action_mode == "limit":  # a speed limit: the drive follows the demand (observed) under it
+            demand = ev.omega_min + 0.5 * (obs2[:, OBS_DEMAND] + 1.0) * (ev.omega_max - ev.omega_min)
         else:
-            tlo, thi = action_bounds(tr)
-            sp = tlo + 0.5 * (a + 1.0) * (thi - tlo)
-            if tr.action_mode == "limit":  # a speed limit: the drive follows the demand (observed) under it
-                demand = ev.omega_min + 0.5 * (obs2[:, OBS_DEMAND] + 1.0) * (ev.omega_max - ev.omega_min)
-                sp = np.minimum(sp, demand)
-            nxt = np.clip(w + tr.reference_filter * (sp - w), w - tr.max_domega, w + tr.max_domega)
+            demand = np.full_like(w, tr.omega_max)
+        nxt = np.empty_like(w)
+        decode_actions(w, a, demand, self.settings, self.mode, nxt)
         nxt = np.clip(nxt, ev.omega_min, ev.omega_max)
         # ... and the action that moves there under the evaluation settings (the set-point whose filtered step
         # lands on it)
