@@ -68,6 +68,8 @@ class ScriptedPolicy(BasePolicy):
         self.has_demand = bool(cp.get("has_demand", False))
         self.action_delay = int(cp.get("action_delay", 0))
         self.sensor_noise = float(cp.get("sensor_noise", 0.0))
+        self.limit_rate = float(cp.get("limit_rate", 0.0))
+        self.limit_column = int(cp.get("limit_column", -1))
         self._decoder = None  # the environment's own action decoder, built on the first need (omega_after)
 
     def bind(self, config: Any) -> ScriptedPolicy:
@@ -137,7 +139,10 @@ class ScriptedPolicy(BasePolicy):
         omega = self.omega_from_obs(obs)
         if not self.action_delay:
             target, state = self._targets(omega, obs, state)
-            return self.action_to(omega, target).astype(np.float32).reshape(n, 1), state
+            a = self.action_to(omega, target)
+            if self.action_mode == "limit_rate":
+                a = self.rate_action(obs, a)
+            return a.astype(np.float32).reshape(n, 1), state
         # actuator dead time (a Smith predictor): the actions already sent drive the next steps, so the
         # target is decided from what is sensed now and commanded from the omega those actions will leave
         fresh = state["sent"] == 0
@@ -150,6 +155,19 @@ class ScriptedPolicy(BasePolicy):
         state["pending"] = np.concatenate([state["pending"][:, 1:], a[:, None]], axis=1)
         state["sent"] = state["sent"] + 1
         return a.astype(np.float32).reshape(n, 1), state
+
+    def rate_action(self, obs: np.ndarray, limit_actions: np.ndarray) -> np.ndarray:
+        """limit_rate mode: the actions (n,) that move the observed speed limit (entry ``speed_limit``) so that the
+        drive does what the limit-mode actions ``limit_actions`` (n,) would make it do, as far as ``limit_rate``
+        allows in a step. A limit L at or above the coming demand d means "follow the demand": then any limit in
+        [d, L] does the same, and the one nearest the present limit is taken (the limit is not pulled down to a
+        low demand, which it would have to climb back from at ``limit_rate`` per step); below d, L itself."""
+        want = self.action_low + 0.5 * (np.asarray(limit_actions, float) + 1.0) * (self.action_high - self.action_low)
+        x = np.asarray(obs, float)[:, self.limit_column]
+        have = self.omega_min + 0.5 * (x + 1.0) * (self.omega_max - self.omega_min)
+        d = _obs_demand(self, obs)
+        want = np.where(want >= d, np.clip(have, np.minimum(d, want), want), want)
+        return np.clip((want - have) / self.limit_rate, -1.0, 1.0)
 
     def omega_after(self, omega: np.ndarray, actions: np.ndarray, demand: np.ndarray | None = None) -> np.ndarray:
         """Omega (n,) after the actions (n, k) drive k steps from ``omega``, decoded by the environment's own

@@ -32,18 +32,13 @@ from typing import Any
 
 import numpy as np
 
+from gear_env.envs.force_level import H_OMEGAS, LOG_H, TROUBLE_DEFECT, force_level, step_mean_omega
+
 from .baselines import OBS_BACK_IMPACTS, OBS_CONTACT, OBS_DEFECT, OBS_DRIVE_IMPACTS, ScriptedPolicy, _obs_demand
 
 OBS_DOMEGA = 1  # change of omega in the step / max_domega
 OBS_FORCE_RMS = 2  # log1p(RMS of the dynamic mesh force / F_s)
 
-H_OMEGAS = np.round(np.arange(0.9, 2.0001, 0.05), 3)
-"""Speeds of the force shape table ``LOG_H``."""
-LOG_H = np.array(
-    [-0.109, 0.227, -0.002, -0.404, -0.789, -0.976, -0.824, -0.540, -0.270, -0.035, 0.168, 0.347, 0.509,
-     0.657, 0.794, 0.921, 1.041, 1.155, 1.263, 1.366, 1.466, 1.563, 1.660]
-)  # fmt: skip
-"""log of the steady force RMS ratio per unit ``q`` at ``H_OMEGAS`` (:func:`force_shape`, e_m1 x0.25, load x1.5)."""
 EDGE_LOGQ = np.array([-1.368, -1.298, -1.235, -1.133, -0.941, -0.842, -0.638, -0.498, -0.25, 0.0, 0.354, 0.839])
 EDGE_OMEGA = np.round(np.arange(1.75, 1.1499, -0.05), 3)
 """The "sensor map": hold ``EDGE_OMEGA[i]`` when the demand is above it and the sensed log q (:func:`log_q`)
@@ -52,8 +47,6 @@ steady steps where the demand was above its hold, classified by the log q sensed
 episodes 0-119 (boundaries between the 95th and 5th percentiles of neighbouring holds)."""
 FLOOR = 1.15
 """Lowest speed the scripts hold (the minimum of h: below it lies the contact-loss band of the slow speeds)."""
-TROUBLE_DEFECT = float(np.log1p(0.5))
-"""Periodicity-defect observation above which a step counts as troubled (half the defect scale)."""
 
 
 def force_shape(config: Any = None, e_m1: float = 0.25, load: float = 1.5, steps: int = 4) -> np.ndarray:
@@ -94,26 +87,16 @@ def _trouble(obs: np.ndarray, margin: float = 0.0) -> np.ndarray:
     return contact | (impacts > 0) | (obs[:, OBS_DEFECT] > TROUBLE_DEFECT + margin)
 
 
-def _level(obs: np.ndarray) -> np.ndarray:
-    """log rho: log of the sensed force RMS ratio (floored: a silent sensor reads as a very precise pair)."""
-    return np.log(np.maximum(np.expm1(obs[:, OBS_FORCE_RMS]), 1e-6))
-
-
 def _need_demand(policy: ScriptedPolicy) -> None:
     if not policy.has_demand:
         raise ValueError(f"policy {policy.name!r} follows a demand: use it on GearSpeedDemand-v0 (demand='random')")
 
 
-def _step_speed(omega: np.ndarray, obs: np.ndarray, max_domega: float) -> tuple[np.ndarray, np.ndarray]:
-    """The mean speed of the step just sensed, and whether the force shape table covers it."""
-    w = omega - 0.5 * obs[:, OBS_DOMEGA] * max_domega
-    return w, (w >= H_OMEGAS[0]) & (w <= H_OMEGAS[-1])
-
-
 def log_q(omega: np.ndarray, obs: np.ndarray, max_domega: float) -> np.ndarray:
-    """The pair's log q sensed in one step: log rho - log h at the step's mean speed (NaN outside the table)."""
-    w, known = _step_speed(omega, obs, max_domega)
-    return np.where(known, _level(obs) - np.interp(w, H_OMEGAS, LOG_H), np.nan)
+    """The pair's log q sensed in one step: log rho - log h at the step's mean speed (NaN outside the table;
+    ``gear_env.envs.force_level.force_level``, the observation entry ``force_level`` of ``force_level=True``)."""
+    w = step_mean_omega(omega, obs[:, OBS_DOMEGA], max_domega)
+    return force_level(w, obs[:, OBS_FORCE_RMS])[0]
 
 
 class SensorServo(ScriptedPolicy):
@@ -202,7 +185,8 @@ class FilteredFollow(SensorServo):
     def _targets(self, omega, obs, state):
         state["t"] = state["t"] + 1
         trouble = _trouble(obs, self.margin)  # thresholds raised by twice the noise
-        w, known = _step_speed(omega, obs, self.max_domega)
+        w = step_mean_omega(omega, obs[:, OBS_DOMEGA], self.max_domega)
+        known = (w >= H_OMEGAS[0]) & (w <= H_OMEGAS[-1])
         sensed = np.expm1(obs[:, OBS_FORCE_RMS].astype(float)) / np.exp(np.interp(w, H_OMEGAS, LOG_H))
         use = ~trouble & known
         count = np.where(use, state["count"] + 1.0, state["count"])

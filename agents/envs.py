@@ -22,7 +22,13 @@ import numpy as np
 GEAR_ENV_ID = "GearSpeed-v1"
 """The task where none is given (``config=None`` of a policy or an oracle, ``TrainOptions.env_id``); the
 CLI's default too (``gear_env.cli.common.DEFAULT_ENV``)."""
-GEAR_ENV_IDS = ("GearSpeed-v0", "GearSpeed-v1", "GearSpeedDemand-v0", "GearSpeedDemandHard-v0")
+GEAR_ENV_IDS = (
+    "GearSpeed-v0",
+    "GearSpeed-v1",
+    "GearSpeedDemand-v0",
+    "GearSpeedDemandHard-v0",
+    "GearSpeedDemandLimit-v0",
+)
 """The registered gear tasks (``gear_env.envs.tasks.TASK_SETTINGS``): one config class, different settings."""
 
 
@@ -146,15 +152,18 @@ def control_parameters(cfg: Any) -> dict[str, Any]:
 
     Returns ``omega_min``, ``omega_max`` (observation[0] maps [omega_min, omega_max] linearly to
     [-1, 1]), ``max_domega`` (largest change of omega per step; action 1 in delta mode),
-    ``action_mode`` ("delta", "target" or "limit"), ``action_low``, ``action_high`` (the speeds the actions -1
-    and +1 mean in target and limit modes), ``reference_filter`` (target and limit modes: fraction of the
+    ``action_mode`` ("delta", "target", "limit" or "limit_rate"), ``action_low``, ``action_high`` (the speeds
+    the actions -1 and +1 mean in target and limit modes), ``reference_filter`` (target and limit modes: fraction of the
     set-point error closed per step before the rate limit), ``max_steps`` (episode length) and ``action_delay``
-    (actuator dead time in steps: an action drives the step ``action_delay`` steps later) and
-    ``sensor_noise`` (std of the noise on the continuous sensor features)."""
+    (actuator dead time in steps: an action drives the step ``action_delay`` steps later),
+    ``sensor_noise`` (std of the noise on the continuous sensor features), ``limit_rate`` (limit_rate mode: the
+    change of the speed limit per unit action) and ``limit_column`` (the observation entry ``speed_limit``; -1
+    if there is none)."""
     from gear_env.envs.env_terms import action_bounds
 
     c = make_config(GEAR_ENV_ID, cfg)
     lo, hi = action_bounds(c)
+    names = c.TERMS.observation_names(c)
     return {
         "action_low": lo,
         "action_high": hi,
@@ -167,6 +176,8 @@ def control_parameters(cfg: Any) -> dict[str, Any]:
         "has_demand": c.demand is not None,
         "action_delay": int(getattr(c, "action_delay", 0)),
         "sensor_noise": float(getattr(c, "sensor_noise", 0.0)),
+        "limit_rate": float(c.limit_rate),
+        "limit_column": names.index("speed_limit") if "speed_limit" in names else -1,
     }
 
 

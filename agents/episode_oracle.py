@@ -92,10 +92,11 @@ class EpisodePlanner:
     def reachable(self, t: int, w0: np.ndarray, nxt: np.ndarray) -> np.ndarray:
         """``nxt`` (omegas after step ``t`` from ``w0``) limited to what the action mode can reach. In limit mode
         the set-point is min(demand of the step, limit) with the limit in the action range [lo, hi], so it lies in
-        [min(d, lo), min(d, hi)] and omega moves towards it (reference filter and rate limit applied). Other
-        modes: ``nxt`` as given (the rate limit only)."""
+        [min(d, lo), min(d, hi)] and omega moves towards it (reference filter and rate limit applied). limit_rate
+        mode is planned as limit mode (the limit's own rate, ``limit_rate`` per step, is not modelled: the plan
+        may ask the limit to move faster than it can). Other modes: ``nxt`` as given (the rate limit only)."""
         c = self.cfg
-        if c.action_mode != "limit" or self.demand is None:
+        if c.action_mode not in ("limit", "limit_rate") or self.demand is None:
             return nxt
         from gear_env.envs.env_terms import action_bounds
 

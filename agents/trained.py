@@ -79,6 +79,12 @@ class ActionAdapter:
                 'a policy trained with action_mode "limit" sets a speed limit under a demand: evaluate it on a task '
                 "with a demand (the evaluation configuration has demand None)"
             )
+        if "limit_rate" in (train_cfg.action_mode, eval_cfg.action_mode):
+            raise ValueError(
+                'actions cannot be re-expressed to or from action_mode "limit_rate" (the action moves a speed limit '
+                f"the adapter does not see; action_mode {train_cfg.action_mode!r} in training, "
+                f"{eval_cfg.action_mode!r} here): evaluate the policy with the action settings it was trained with"
+            )
         delays = (getattr(train_cfg, "action_delay", 0), getattr(eval_cfg, "action_delay", 0))
         if any(delays):
             raise ValueError(
@@ -95,7 +101,7 @@ class ActionAdapter:
 
     @staticmethod
     def needed(train_cfg: Any, eval_cfg: Any) -> bool:
-        keys = ("action_mode", "omega_min", "omega_max", "max_domega", "action_range", "reference_filter")
+        keys = ("action_mode", "omega_min", "omega_max", "max_domega", "action_range", "reference_filter", "limit_rate")
         return any(getattr(train_cfg, k) != getattr(eval_cfg, k) for k in keys)
 
     def __call__(self, observation: np.ndarray, actions: np.ndarray) -> np.ndarray:

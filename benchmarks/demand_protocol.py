@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-DEMAND_TASKS = ("GearSpeedDemand-v0", "GearSpeedDemandHard-v0")
+DEMAND_TASKS = ("GearSpeedDemand-v0", "GearSpeedDemandHard-v0", "GearSpeedDemandLimit-v0")
 """The tasks of the tables (``--env``; the first is the default)."""
 BASELINES = ("oracle", "fixed-best", "delayed-oracle:10", "identify-follow", "sensor-servo", "pretrained")
 COST_TERMS = ("reward_chaos", "reward_contact", "reward_impact", "reward_vibration", "reward_rate", "reward_divergence")

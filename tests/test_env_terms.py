@@ -127,9 +127,15 @@ def test_every_entry_has_its_formula_line():
         assert f"S[P.{t.weight_name}]" in src, t.weight_name
     for t in ET.COSTS:
         assert re.search(rf"I\[r, C\.{t.name}\] = ", src), t.name
+    from gear_env.envs import env_core
+
+    core_src = inspect.getsource(env_core.GearSpeedCore)
     for o in ET.OBSERVATIONS:
         if o.when is ET._full_state:
             continue  # the hidden state is copied in one loop from F.X_p on
+        if o.name in ET.CORE_OBSERVATIONS:  # written by the environment's core around the kernel, once each
+            assert len(re.findall(rf"(F\.{o.name}\]|c\[\"{o.name}\"\]\]) = ", core_src)) == 1, o.name
+            continue
         assert re.search(rf"f\[F\.{o.name}\] = ", src), o.name
     for i in ET.INFOS:
         assert re.search(rf"I\[r, IX\.{i.name}\] = ", src), i.name

@@ -27,6 +27,7 @@ from ..sim.integration import TOL_N_START, integrate
 from ..sim.params import C_FS, GearParams, model_code, refuse_extensions
 from . import env_kernels as EK
 from . import env_terms as ET
+from . import force_level as FL
 from .env_config import GearSpeedConfig
 from .tasks import Episode, random_demand
 
@@ -161,6 +162,17 @@ class GearSpeedCore:
         # actuator dead time: the actions waiting to reach the drive, oldest first (row 0 of each column; it is
         # also the `pending_action` feature, and stays 0 without a dead time)
         self._pending = np.zeros((max(cfg.action_delay, 1), n))
+        # limit_rate mode: the speed limit of each row (omega), moved by the actions; observed as speed_limit
+        self.limit = np.zeros(n)
+        self._limit_mode = cfg.action_mode == "limit_rate"
+        # force_level: columns the derived entries are computed from and written to, and each row's steady level
+        self._levels = bool(cfg.force_level)
+        if self._levels:
+            col = {k: names.index(k) for k in ("omega", "domega", "force_rms", "defect", "contact_loss",
+                                               "drive_impacts", "back_impacts", "force_level", "force_level_known",
+                                               "steady_force_level", "steady_force_level_known")}  # fmt: skip
+            self._level_cols = col
+        self._steady = np.zeros((n, 2))  # (level, known)
         self.X = np.zeros((n, K.NSTATE))
         self.A = np.zeros((n, K.NDOF))
         self.C = np.tile(np.asarray(cfg.params.consts, float), (n, 1))
@@ -385,6 +397,9 @@ class GearSpeedCore:
             changes = load is not None or wear is not None
             self._set_plant(r, self.episodes[r].params_at(0) if changes else p, equilibrium=True)
         self.omega[rows] = w_init
+        if self._limit_mode:  # the limit starts at the bottom of its band
+            self.limit[rows] = ET.action_bounds(cfg)[0]
+            self._show_limit(rows)
         if cfg.action_delay:  # the drive holds the initial speed until the first action arrives
             alo, ahi = ET.action_bounds(cfg)
             hold = 2.0 * (w_init - alo) / (ahi - alo) - 1.0
@@ -403,6 +418,9 @@ class GearSpeedCore:
         ok_all &= ok
         self._post(rows, st, ok_all, elapsed, w_init, w_init, True)
         self._add_noise(rows, ok_all)
+        if self._levels:
+            self._steady[rows] = 0.0
+            self._add_levels(rows, ok_all)
 
     def _add_noise(self, rows: np.ndarray, fresh: np.ndarray) -> None:
         """Sensor noise on the observation of the ``rows`` whose observation was just written (``fresh``):
@@ -422,6 +440,33 @@ class GearSpeedCore:
             k, c = self._noise_prev[:, 0], self._noise_prev[:, 1]
             z = self._noise[rows, np.maximum(t - 1, 0)][:, c]
             obs[rows[:, None], k] = np.clip(obs[rows][:, k] + sig * z, lo[k], hi[k])
+
+    def _add_levels(self, rows: np.ndarray, fresh: np.ndarray) -> None:
+        """The ``force_level`` entries of the ``rows`` whose observation was just written (``fresh``), from that
+        observation itself (after any sensor noise): gear_env/envs/force_level.py."""
+        rows = np.asarray(rows, np.int64)[np.asarray(fresh, bool)]
+        if not len(rows):
+            return
+        cfg, c, o = self.config, self._level_cols, self.obs
+        x = o[rows].astype(float)
+        w_end = cfg.omega_min + 0.5 * (x[:, c["omega"]] + 1.0) * (cfg.omega_max - cfg.omega_min)
+        w_mid = FL.step_mean_omega(w_end, x[:, c["domega"]], cfg.max_domega)
+        level, known = FL.force_level(w_mid, x[:, c["force_rms"]])
+        level = np.clip(np.nan_to_num(level, nan=0.0), -FL.LEVEL_CLIP, FL.LEVEL_CLIP)
+        trouble = (
+            (x[:, c["contact_loss"]] > ET.TROUBLE_CONTACT)
+            | (x[:, c["drive_impacts"]] + x[:, c["back_impacts"]] > 0.0)
+            | (x[:, c["defect"]] > FL.TROUBLE_DEFECT)
+        )
+        steady = known & ~trouble & (np.abs(x[:, c["domega"]]) <= FL.STEADY_DOMEGA + 1e-6)
+        st = self._steady[rows]
+        st[steady, 0] = level[steady]
+        st[steady, 1] = 1.0
+        self._steady[rows] = st
+        o[rows, c["force_level"]] = level
+        o[rows, c["force_level_known"]] = known
+        o[rows, c["steady_force_level"]] = st[:, 0]
+        o[rows, c["steady_force_level_known"]] = st[:, 1]
 
     def _set_plant(self, r: int, p: GearParams, equilibrium: bool = False) -> None:
         """Row ``r`` simulates the gear pair ``p`` from now on (the features' static references follow
@@ -455,10 +500,15 @@ class GearSpeedCore:
             ):
                 self._set_plant(r, self.episodes[r].params_at(t))
 
+    def _show_limit(self, rows: np.ndarray) -> None:
+        """Write the rows' speed limit into the feature the observation gathers (scaled like omega)."""
+        lo, hi = self.config.omega_min, self.config.omega_max
+        self.F[rows, ET.F.speed_limit] = np.clip(2.0 * (self.limit[rows] - lo) / (hi - lo) - 1.0, -1.0, 1.0)
+
     def decode(self, rows: np.ndarray, actions: np.ndarray) -> np.ndarray:
         """Omega at the end of the next step for actions in [-1, 1] (rate-limited, clipped)."""
         out = np.empty(len(rows))
-        limit = self.config.action_mode == "limit"  # only the limit mode reads the demand of the step
+        limit = self.config.action_mode in ET.LIMIT_MODES  # only the limit modes read the demand of the step
         demand = self.demand(self.steps[rows], rows) if limit else self._zeros[: len(rows)]
         EK.decode_actions(self.omega[rows], actions, demand, self.S, ET.ACTION_CODES[self.config.action_mode], out)
         return out
@@ -478,12 +528,18 @@ class GearSpeedCore:
             q[:-1, rows] = q[1:, rows]
             q[-1, rows] = np.clip(np.asarray(actions, float), -1.0, 1.0)
             actions = applied
+        if self._limit_mode:  # the action moves the speed limit; the drive then follows the demand under it
+            self.limit[rows] = ET.limit_after(self.config, self.limit[rows], actions)
+            self._show_limit(rows)
+            actions = ET.limit_action(self.config, self.limit[rows])
         w1 = self.decode(rows, actions)
         pc, st, ok, elapsed = self._integrate(rows, w0, w1, self.config.periods_per_step)
         EK.push_history(rows, pc, w0, w1, ok, self.hist)
         self.omega[rows] = np.where(ok, w1, w0)
         out = self._post(rows, st, ok, elapsed, w0, w1, False)
         self._add_noise(rows, ok)
+        if self._levels:
+            self._add_levels(rows, ok)
         return out
 
 

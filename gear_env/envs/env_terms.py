@@ -225,9 +225,19 @@ STATE_CLIP = 1e6
 """Bound of the hidden-state entries of ``observation="full"`` (the kernels' divergence limit)."""
 MIN_STATIC_MESH_FORCE = 1e-6
 """Smallest static mesh force F_s [k_m0 b0] the env accepts (the default pair has 0.0275)."""
-ACTION_MODES = ("delta", "target", "limit")
-ACTION_CODES = {mode: i for i, mode in enumerate(ACTION_MODES)}
-"""The action mode as the kernels take it (``env_kernels.decode_actions``): 0 delta, 1 target, 2 limit."""
+ACTION_MODES = ("delta", "target", "limit", "limit_rate")
+ACTION_CODES = {"delta": 0, "target": 1, "limit": 2, "limit_rate": 2}
+"""The action mode as the kernels take it (``env_kernels.decode_actions``): 0 delta, 1 target, 2 limit. In
+``limit_rate`` mode the environment first turns the action into the limit it sets (:func:`limit_after`), which
+the kernel then decodes as a limit-mode action."""
+CORE_OBSERVATIONS = (
+    "speed_limit", "force_level", "force_level_known", "steady_force_level", "steady_force_level_known"
+)  # fmt: skip
+"""Observation entries written by the environment's core (``env_core.GearSpeedCore``: ``_show_limit`` and
+``_add_levels``) rather than by ``env_kernels.post_step``: the speed limit the core keeps and the force level
+computed from the observation (after any sensor noise)."""
+LIMIT_MODES = ("limit", "limit_rate")
+"""Action modes in which the drive follows the demand under a speed limit (they need a demand)."""
 OBSERVATION_SETS = ("sensors", "full")
 DEMAND_PRESETS = ("steps", "ramp", "random")
 THROUGHPUT_MODES = ("all", "delivered")
@@ -287,9 +297,10 @@ def _initial_omega(label: str, v: Any, cfg: Any) -> Any:
 
 def _demand(label: str, v: Any, cfg: Any) -> Any:
     if v is None:
-        if cfg.action_mode == "limit":
+        if cfg.action_mode in LIMIT_MODES:
             raise ValueError(
-                'action_mode "limit" sets a speed limit under which the drive follows the demand: it needs a demand '
+                f'action_mode "{cfg.action_mode}" sets a speed limit under which the drive follows the demand: it '
+                "needs a demand "
                 '(demand is None; give demand="random", "steps", "ramp" or a list of (t, omega) points)'
             )
         return None
@@ -326,10 +337,40 @@ def _action_range(label: str, v: Any, cfg: Any) -> Any:
 
 
 def action_bounds(cfg: Any) -> tuple[float, float]:
-    """The speeds (omega) that the actions -1 and +1 mean in target and limit modes: ``action_range`` or
-    [omega_min, omega_max]."""
+    """The speeds (omega) that the actions -1 and +1 mean in target and limit modes (in limit_rate mode the
+    band the speed limit moves in): ``action_range`` or [omega_min, omega_max]."""
     r = cfg.action_range
     return (float(cfg.omega_min), float(cfg.omega_max)) if r is None else (float(r[0]), float(r[1]))
+
+
+def _limit_rate(label: str, v: Any, cfg: Any) -> float:
+    """A positive change of the speed limit per step, at most the width of the action range."""
+    lo, hi = action_bounds(cfg)
+    return check_real(label, v, 0.0, hi - lo, lo_open=True)
+
+
+def _action_delay(label: str, v: Any, cfg: Any) -> int:
+    """An actuator dead time in [0, 10] steps; none in limit_rate mode (not supported there)."""
+    n = integer(0, 10)(label, v, cfg)
+    if n and cfg.action_mode == "limit_rate":
+        raise ValueError(
+            f'{label} must be 0 with action_mode "limit_rate" (a dead time is not supported in that mode), got {v!r}'
+        )
+    return n
+
+
+def limit_after(cfg: Any, limit: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """``limit_rate`` mode: the speed limit (omega) after actions in [-1, 1] move ``limit`` by
+    ``action x limit_rate``, clipped to the action range (:func:`action_bounds`)."""
+    lo, hi = action_bounds(cfg)
+    a = np.clip(np.asarray(actions, float), -1.0, 1.0)
+    return np.clip(np.asarray(limit, float) + a * cfg.limit_rate, lo, hi)
+
+
+def limit_action(cfg: Any, limit: np.ndarray) -> np.ndarray:
+    """The limit-mode action in [-1, 1] that means the speed limit ``limit`` (omega) over the action range."""
+    lo, hi = action_bounds(cfg)
+    return np.clip(2.0 * (np.asarray(limit, float) - lo) / (hi - lo) - 1.0, -1.0, 1.0)
 
 
 def _demand_segments(label: str, v: Any, cfg: Any) -> tuple[int, int]:
@@ -415,6 +456,14 @@ def _has_delay(cfg: Any) -> bool:
     return cfg.action_delay > 0
 
 
+def _has_force_level(cfg: Any) -> bool:
+    return bool(cfg.force_level)
+
+
+def _has_limit_state(cfg: Any) -> bool:
+    return cfg.action_mode == "limit_rate"
+
+
 TROUBLE_CONTACT = 0.02
 """A step is *troubled* (for the memory features) when its contact-loss fraction exceeds this, it has an
 impact (either side) or its motion is non-periodic (c > 0.5): the edge seeker's test
@@ -439,13 +488,18 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("omega_min", 0.1, real(0.0, 20.0, lo_open=True), "(0, 20]", "smallest admissible omega", kernel=float),
     Setting("omega_max", 3.0, _omega_max, "(omega_min, 20]", "largest admissible omega", kernel=float),
     Setting("max_domega", 0.05, _max_domega, "(0, max-min]", "largest omega change per step", kernel=float),
-    Setting("action_mode", "delta", choice(*ACTION_MODES), '"delta", "target", "limit"',
+    Setting("action_mode", "delta", choice(*ACTION_MODES), '"delta", "target", "limit", "limit_rate"',
             "meaning of the action: a change of omega (delta), a speed set-point over [omega_min, omega_max] "
             "(target), or a speed limit over that range under which the drive follows the demand (limit: "
-            "set-point min(demand, limit); needs a demand)"),
+            "set-point min(demand, limit); needs a demand), or a change of that speed limit (limit_rate: the "
+            "limit moves by action x `limit_rate` per step, starts each episode at the bottom of the action "
+            "range and is observed as `speed_limit`; needs a demand)"),
     Setting("action_range", None, _action_range, "None, (lo, hi) in [omega_min, omega_max]",
             "the speeds that the actions -1 and +1 mean in target and limit modes, linear between (None: "
             "[omega_min, omega_max]); the observation keeps scaling omega over [omega_min, omega_max]"),
+    Setting("limit_rate", 0.03, _limit_rate, "(0, width of the action range]",
+            "limit_rate mode: change of the speed limit per step for the action +-1 (omega units); no effect "
+            "in other modes"),
     Setting("reference_filter", 1.0, real(0.0, 1.0, lo_open=True), "(0, 1]",
             "target and limit modes: fraction of the set-point error the drive's reference closes per step "
             "(first-order filter before the rate limit; 1: none; no effect in delta mode)", kernel=float),
@@ -470,7 +524,7 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("wear", None, _wear, "None, `WearChange` or dict",
             "a change of the pair within the episode: at a step drawn from `at_step`, e_m1 times a factor drawn "
             "from `factors` (see gear_env/envs/tasks.py)"),
-    Setting("action_delay", 0, integer(0, 10), "[0, 10]",
+    Setting("action_delay", 0, _action_delay, "[0, 10]; 0 with limit_rate",
             "actuator dead time [env steps]: the action of step t drives step t + action_delay (the drive "
             "holds the initial speed's set-point until then)"),
     Setting("sensor_noise", 0.0, real(0.0, 1.0), "[0, 1]",
@@ -485,6 +539,10 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("memory_steps", 0.0, real(0.0, 1000.0), "[0, 1000]",
             "time constant [env steps] of the memory features (`trouble_omega`, `trouble_recency`, "
             "`prev_force_rms`, `prev_contact_loss`); 0: none (the observation carries no history)", kernel=float),
+    Setting("force_level", False, boolean, "bool",
+            "add the observation entries `force_level`, `force_level_known`, `steady_force_level` and "
+            "`steady_force_level_known`: the sensed force RMS over the family's steady force at the step's speed "
+            "(gear_env/envs/force_level.py; a scaling of what is observed, in which the pair shows directly)"),
 )  # fmt: skip
 
 REWARDS: tuple[Term, ...] = (
@@ -574,6 +632,18 @@ OBSERVATIONS: tuple[Observation, ...] = (
                 "step (of the warm-up itself after a reset)", when=_has_memory),
     Observation("prev_contact_loss", 0.0, 1.0, "(only with `memory_steps` > 0) `contact_loss` of the previous step "
                 "(of the warm-up itself after a reset)", when=_has_memory),
+    Observation("speed_limit", -1.0, 1.0, '(only with `action_mode="limit_rate"`) the speed limit the drive '
+                "followed the demand under in the step, scaled like omega; the next action moves it",
+                when=_has_limit_state),
+    Observation("force_level", -5.0, 5.0, "(only with `force_level`) log of the step's sensed force RMS ratio over the "
+                "family's steady one at the step's mean speed: the pair's log q (gear_env/envs/force_level.py), "
+                "clipped to +-5; 0 where the table does not cover the speed (0.9-2.0)", when=_has_force_level),
+    Observation("force_level_known", 0.0, 1.0, "(only with `force_level`) 1 if the step's mean speed lies in the "
+                "table (0.9-2.0), else 0", when=_has_force_level),
+    Observation("steady_force_level", -5.0, 5.0, "(only with `force_level`) `force_level` of the last clean, steady "
+                "step (no trouble, |domega| <= 0.3, speed in the table); 0 until one", when=_has_force_level),
+    Observation("steady_force_level_known", 0.0, 1.0, "(only with `force_level`) 1 once such a step was seen in "
+                "the episode", when=_has_force_level),
     Observation("pending_action", -1.0, 1.0, "(only with `action_delay` > 0) the action already sent that drives the "
                 "next step (the state of the dead time; the drive's hold action right after a reset)",
                 when=_has_delay),

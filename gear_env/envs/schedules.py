@@ -46,7 +46,9 @@ from .env_terms import action_bounds
 MAX_SCHEDULE_BYTES = 16 * 1024 * 1024
 """Largest schedule file read (bytes); a larger one is refused before it is read."""
 
-ACTION_FIELDS = ("action_mode", "max_domega", "reference_filter", "omega_min", "omega_max", "action_range")
+ACTION_FIELDS = (
+    "action_mode", "max_domega", "reference_filter", "omega_min", "omega_max", "action_range", "limit_rate"
+)  # fmt: skip
 """The settings that decide what an action means: a schedule bound to one task runs on another only if
 they agree."""
 
@@ -299,6 +301,10 @@ class SpeedSchedule:
                 target = np.clip(w + (target - w) / cfg.reference_filter, lo, hi)
             alo, ahi = action_bounds(cfg)
             a = 2.0 * (target - alo) / (ahi - alo) - 1.0
+            if cfg.action_mode == "limit_rate":  # move the observed speed limit towards the scheduled speed
+                x = obs[:, cfg.TERMS.observation_names(cfg).index("speed_limit")]
+                limit = lo + 0.5 * (x + 1.0) * (hi - lo)
+                a = (np.clip(target, alo, ahi) - limit) / cfg.limit_rate
         else:
             w = lo + 0.5 * (obs[:, 0] + 1.0) * (hi - lo)
             diff = target - w

@@ -296,10 +296,22 @@ DEMAND_HARD_SETTINGS: dict[str, Any] = {
 }
 """``GearSpeedDemandHard-v0``: ``GearSpeedDemand-v0`` with noisy sensors, a one-step actuator dead time and a pair whose
 transmission error changes once within the episode (docs/tasks/GearSpeedDemandHard-v0.md)."""
+DEMAND_LIMIT_SETTINGS: dict[str, Any] = {
+    **DEMAND_SETTINGS,
+    "action_mode": "limit_rate",
+    "action_range": (1.15, 1.8),
+    "limit_rate": 0.03,
+    "reference_filter": 1.0,
+    "force_level": True,
+}
+"""``GearSpeedDemandLimit-v0``: ``GearSpeedDemand-v0`` made learnable by stock learners: the action moves a speed limit
+(by at most 0.03 per step, within [1.15, 1.8]) under which the drive follows the demand, and the observation adds
+the limit and the speed-normalised force level (docs/tasks/GearSpeedDemandLimit-v0.md says why)."""
 TASK_SETTINGS: dict[str, dict[str, Any]] = {
     "GearSpeed-v0": {},
     "GearSpeed-v1": V1_SETTINGS,
     "GearSpeedDemand-v0": DEMAND_SETTINGS,
+    "GearSpeedDemandLimit-v0": DEMAND_LIMIT_SETTINGS,
     "GearSpeedDemandHard-v0": DEMAND_HARD_SETTINGS,
 }
 """Registered tasks and their settings (``gym.make(ID)`` uses these; keywords override them)."""
