@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from gear_env.envs.force_level import H_OMEGAS, LOG_H, TROUBLE_DEFECT, force_level, step_mean_omega
+from gear_env.envs.force_level import H_OMEGAS, LOG_H, force_level, step_mean_omega, troubled
 
 from .baselines import OBS_BACK_IMPACTS, OBS_CONTACT, OBS_DEFECT, OBS_DRIVE_IMPACTS, ScriptedPolicy, _obs_demand
 
@@ -78,13 +78,10 @@ def _demand(policy: ScriptedPolicy, obs: np.ndarray) -> np.ndarray:
 
 
 def _trouble(obs: np.ndarray, margin: float = 0.0) -> np.ndarray:
-    """Troubled steps: contact loss, an impact or a periodicity defect; ``margin`` raises the thresholds of the
-    continuous sensors (for noisy ones; impacts are counted events, exact)."""
-    from gear_env.envs.env_terms import TROUBLE_CONTACT
-
+    """Troubled steps: contact loss, an impact or a periodicity defect (``gear_env.envs.force_level.troubled``);
+    ``margin`` raises the thresholds of the continuous sensors (for noisy ones; impacts are counted events, exact)."""
     impacts = obs[:, OBS_DRIVE_IMPACTS] + obs[:, OBS_BACK_IMPACTS]
-    contact = obs[:, OBS_CONTACT] > TROUBLE_CONTACT + margin
-    return contact | (impacts > 0) | (obs[:, OBS_DEFECT] > TROUBLE_DEFECT + margin)
+    return troubled(obs[:, OBS_CONTACT], impacts, obs[:, OBS_DEFECT], margin)
 
 
 def _need_demand(policy: ScriptedPolicy) -> None:
@@ -186,7 +183,7 @@ class FilteredFollow(SensorServo):
         state["t"] = state["t"] + 1
         trouble = _trouble(obs, self.margin)  # thresholds raised by twice the noise
         w = step_mean_omega(omega, obs[:, OBS_DOMEGA], self.max_domega)
-        known = (w >= H_OMEGAS[0]) & (w <= H_OMEGAS[-1])
+        known = force_level(w, obs[:, OBS_FORCE_RMS])[1]
         sensed = np.expm1(obs[:, OBS_FORCE_RMS].astype(float)) / np.exp(np.interp(w, H_OMEGAS, LOG_H))
         use = ~trouble & known
         count = np.where(use, state["count"] + 1.0, state["count"])

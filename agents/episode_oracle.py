@@ -96,9 +96,10 @@ class EpisodePlanner:
         mode is planned as limit mode (the limit's own rate, ``limit_rate`` per step, is not modelled: the plan
         may ask the limit to move faster than it can). Other modes: ``nxt`` as given (the rate limit only)."""
         c = self.cfg
-        if c.action_mode not in ("limit", "limit_rate") or self.demand is None:
+        from gear_env.envs.env_terms import LIMIT_MODES, action_bounds
+
+        if c.action_mode not in LIMIT_MODES or self.demand is None:
             return nxt
-        from gear_env.envs.env_terms import action_bounds
 
         lo, hi = action_bounds(c)
         d = self.demand[min(t, len(self.demand) - 1)]

@@ -84,10 +84,11 @@ def calibrate(cfg, seeds: Sequence[int], env_id: str = DEMAND_TASKS[0]) -> str:
     clean, steady steps where the demand is above the oracle's next speed, the log q sensed there per hold
     speed (0.05 grid), and the boundary between neighbouring holds (midway between the 95th percentile of the
     higher hold and the 5th of the lower one)."""
-    from agents.demand_scripts import OBS_DOMEGA, TROUBLE_DEFECT, log_q
+    from agents.demand_scripts import OBS_DOMEGA, log_q
     from agents.registry import resolve_policy
     from gear_env.envs.env import GearSpeedEnv
     from gear_env.envs.env_terms import TROUBLE_CONTACT
+    from gear_env.envs.force_level import TROUBLE_DEFECT
 
     env, oracle = GearSpeedEnv(cfg), resolve_policy("oracle", cfg, env_id=env_id)
     span = cfg.omega_max - cfg.omega_min

@@ -172,7 +172,7 @@ class GearSpeedCore:
                                                "drive_impacts", "back_impacts", "force_level", "force_level_known",
                                                "steady_force_level", "steady_force_level_known")}  # fmt: skip
             self._level_cols = col
-        self._steady = np.zeros((n, 2))  # (level, known)
+            self._steady = np.zeros((n, 2))  # (level, known) of the last clean, steady step
         self.X = np.zeros((n, K.NSTATE))
         self.A = np.zeros((n, K.NDOF))
         self.C = np.tile(np.asarray(cfg.params.consts, float), (n, 1))
@@ -453,10 +453,8 @@ class GearSpeedCore:
         w_mid = FL.step_mean_omega(w_end, x[:, c["domega"]], cfg.max_domega)
         level, known = FL.force_level(w_mid, x[:, c["force_rms"]])
         level = np.clip(np.nan_to_num(level, nan=0.0), -FL.LEVEL_CLIP, FL.LEVEL_CLIP)
-        trouble = (
-            (x[:, c["contact_loss"]] > ET.TROUBLE_CONTACT)
-            | (x[:, c["drive_impacts"]] + x[:, c["back_impacts"]] > 0.0)
-            | (x[:, c["defect"]] > FL.TROUBLE_DEFECT)
+        trouble = FL.troubled(
+            x[:, c["contact_loss"]], x[:, c["drive_impacts"]] + x[:, c["back_impacts"]], x[:, c["defect"]]
         )
         steady = known & ~trouble & (np.abs(x[:, c["domega"]]) <= FL.STEADY_DOMEGA + 1e-6)
         st = self._steady[rows]

@@ -35,6 +35,16 @@ STEADY_DOMEGA = 0.3
 1e-6: the float32 observation of a step that follows the limit at 0.03 per step reads 0.3000000119)."""
 
 
+def troubled(contact: np.ndarray, impacts: np.ndarray, defect: np.ndarray, margin: float = 0.0) -> np.ndarray:
+    """Troubled steps from their observation entries: ``contact_loss`` above ``TROUBLE_CONTACT``, any impact
+    (``drive_impacts`` + ``back_impacts`` > 0) or ``defect`` above :data:`TROUBLE_DEFECT`; ``margin`` raises the
+    two continuous thresholds (for noisy sensors; impacts are counted events, exact)."""
+    from .env_terms import TROUBLE_CONTACT
+
+    c = np.asarray(contact, float) > TROUBLE_CONTACT + margin
+    return c | (np.asarray(impacts, float) > 0) | (np.asarray(defect, float) > TROUBLE_DEFECT + margin)
+
+
 def step_mean_omega(omega_end: np.ndarray, domega_obs: np.ndarray, max_domega: float) -> np.ndarray:
     """The mean speed of a step from its end speed (omega units) and its ``domega`` observation."""
     return np.asarray(omega_end, float) - 0.5 * np.asarray(domega_obs, float) * max_domega
@@ -50,4 +60,13 @@ def force_level(omega_mid: np.ndarray, force_rms_obs: np.ndarray) -> tuple[np.nd
     return np.where(known, level, np.nan), known
 
 
-__all__ = ["H_OMEGAS", "LEVEL_CLIP", "LOG_H", "STEADY_DOMEGA", "TROUBLE_DEFECT", "force_level", "step_mean_omega"]
+__all__ = [
+    "H_OMEGAS",
+    "LEVEL_CLIP",
+    "LOG_H",
+    "STEADY_DOMEGA",
+    "TROUBLE_DEFECT",
+    "force_level",
+    "step_mean_omega",
+    "troubled",
+]
