@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from gear_env.envs.force_level import H_OMEGAS, LOG_H, force_level, step_mean_omega, troubled
+from gear_env.envs.force_level import H_OMEGAS, force_level, mean_level_update, step_mean_omega, troubled
 
 from .baselines import OBS_BACK_IMPACTS, OBS_CONTACT, OBS_DEFECT, OBS_DRIVE_IMPACTS, ScriptedPolicy, _obs_demand
 
@@ -184,11 +184,8 @@ class FilteredFollow(SensorServo):
         trouble = _trouble(obs, self.margin)  # thresholds raised by twice the noise
         w = step_mean_omega(omega, obs[:, OBS_DOMEGA], self.max_domega)
         known = force_level(w, obs[:, OBS_FORCE_RMS])[1]
-        sensed = np.expm1(obs[:, OBS_FORCE_RMS].astype(float)) / np.exp(np.interp(w, H_OMEGAS, LOG_H))
         use = ~trouble & known
-        count = np.where(use, state["count"] + 1.0, state["count"])
-        k = 1.0 / np.minimum(np.maximum(count, 1.0), self.window)
-        q = np.where(use, state["q"] + k * (sensed - state["q"]), state["q"])
+        q, count = mean_level_update(state["q"], state["count"], w, obs[:, OBS_FORCE_RMS], use, self.window)
         q = np.where(trouble & (omega >= self.floor) & (count > 0), q * np.exp(self.penalty), q)
         state["q"], state["count"] = q, count
         logq = np.where(count > 0, np.log(np.maximum(q, 1e-6)), np.nan)

@@ -91,7 +91,8 @@ def test_demand_scripts_need_the_demand_task():
 
 def test_force_shape_table_is_the_measured_one(demand_cfg):
     """LOG_H is what force_shape measures, and it is the same for another pair of the family (factorisation)."""
-    from agents.demand_scripts import LOG_H, force_shape
+    from agents.demand_scripts import force_shape
+    from gear_env.envs.force_level import LOG_H
 
     assert np.allclose(force_shape(demand_cfg), LOG_H, atol=2e-3)
     other = force_shape(demand_cfg, e_m1=0.5, load=1.5)[:13]  # below that pair's contact loss (omega <= 1.5)

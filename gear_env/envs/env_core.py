@@ -173,6 +173,10 @@ class GearSpeedCore:
                                                "steady_force_level", "steady_force_level_known")}  # fmt: skip
             self._level_cols = col
             self._steady = np.zeros((n, 2))  # (level, known) of the last clean, steady step
+            self._window = int(cfg.level_window)
+            if self._window:
+                col.update({k: names.index(k) for k in ("mean_force_level", "mean_force_level_count")})
+                self._mean = np.zeros((n, 2))  # (mean q, clean steps counted) of the level_window average
         self.X = np.zeros((n, K.NSTATE))
         self.A = np.zeros((n, K.NDOF))
         self.C = np.tile(np.asarray(cfg.params.consts, float), (n, 1))
@@ -420,6 +424,8 @@ class GearSpeedCore:
         self._add_noise(rows, ok_all)
         if self._levels:
             self._steady[rows] = 0.0
+            if self._window:
+                self._mean[rows] = 0.0
             self._add_levels(rows, ok_all)
 
     def _add_noise(self, rows: np.ndarray, fresh: np.ndarray) -> None:
@@ -465,6 +471,22 @@ class GearSpeedCore:
         o[rows, c["force_level_known"]] = known
         o[rows, c["steady_force_level"]] = st[:, 0]
         o[rows, c["steady_force_level_known"]] = st[:, 1]
+        if self._window:  # the level_window average of q over clean steps (FL.mean_level_update)
+            noisy = FL.troubled(
+                x[:, c["contact_loss"]],
+                x[:, c["drive_impacts"]] + x[:, c["back_impacts"]],
+                x[:, c["defect"]],
+                margin=2.0 * cfg.sensor_noise,
+            )
+            m = self._mean[rows]
+            m[:, 0], m[:, 1] = FL.mean_level_update(
+                m[:, 0], m[:, 1], w_mid, x[:, c["force_rms"]], known & ~noisy, self._window
+            )
+            self._mean[rows] = m
+            o[rows, c["mean_force_level"]] = np.where(
+                m[:, 1] > 0, np.clip(np.log(np.maximum(m[:, 0], 1e-6)), -FL.LEVEL_CLIP, FL.LEVEL_CLIP), 0.0
+            )
+            o[rows, c["mean_force_level_count"]] = np.minimum(m[:, 1], self._window) / self._window
 
     def _set_plant(self, r: int, p: GearParams, equilibrium: bool = False) -> None:
         """Row ``r`` simulates the gear pair ``p`` from now on (the features' static references follow

@@ -231,7 +231,8 @@ ACTION_CODES = {"delta": 0, "target": 1, "limit": 2, "limit_rate": 2}
 ``limit_rate`` mode the environment first turns the action into the limit it sets (:func:`limit_after`), which
 the kernel then decodes as a limit-mode action."""
 CORE_OBSERVATIONS = (
-    "speed_limit", "force_level", "force_level_known", "steady_force_level", "steady_force_level_known"
+    "speed_limit", "force_level", "force_level_known", "steady_force_level", "steady_force_level_known",
+    "mean_force_level", "mean_force_level_count",
 )  # fmt: skip
 """Observation entries written by the environment's core (``env_core.GearSpeedCore``: ``_show_limit`` and
 ``_add_levels``) rather than by ``env_kernels.post_step``: the speed limit the core keeps and the force level
@@ -460,6 +461,18 @@ def _has_force_level(cfg: Any) -> bool:
     return bool(cfg.force_level)
 
 
+def _has_level_window(cfg: Any) -> bool:
+    return cfg.level_window > 0
+
+
+def _level_window(label: str, v: Any, cfg: Any) -> int:
+    """0 (off) or the averaging window in [1, 1000] env steps of the mean force level; needs ``force_level``."""
+    n = integer(0, 1000)(label, v, cfg)
+    if n and not cfg.force_level:
+        raise ValueError(f"{label} > 0 needs force_level=True (it averages the force level), got {v!r}")
+    return n
+
+
 def _has_limit_state(cfg: Any) -> bool:
     return cfg.action_mode == "limit_rate"
 
@@ -543,6 +556,10 @@ SETTINGS: tuple[Setting, ...] = (
             "add the observation entries `force_level`, `force_level_known`, `steady_force_level` and "
             "`steady_force_level_known`: the sensed force RMS over the family's steady force at the step's speed "
             "(gear_env/envs/force_level.py; a scaling of what is observed, in which the pair shows directly)"),
+    Setting("level_window", 0, _level_window, "[0, 1000]",
+            "(with `force_level`) add `mean_force_level` and `mean_force_level_count`: the pair's q averaged over "
+            "the clean steps, a running mean over the first `level_window` of them, then an exponential average "
+            "of weight 1/`level_window` (it follows a pair that changes); 0: off"),
 )  # fmt: skip
 
 REWARDS: tuple[Term, ...] = (
@@ -644,6 +661,13 @@ OBSERVATIONS: tuple[Observation, ...] = (
                 "step (no trouble, |domega| <= 0.3, speed in the table); 0 until one", when=_has_force_level),
     Observation("steady_force_level_known", 0.0, 1.0, "(only with `force_level`) 1 once such a step was seen in "
                 "the episode", when=_has_force_level),
+    Observation("mean_force_level", -5.0, 5.0, "(only with `level_window` > 0) log of the pair's q = "
+                "exp(`force_level`) averaged over the clean steps (no trouble above thresholds raised by "
+                "2 `sensor_noise`, speed in the table): running mean over the first `level_window`, then "
+                "exponential of weight 1/`level_window`; "
+                "averaging q, not log q, keeps it unbiased under sensor noise; 0 until one", when=_has_level_window),
+    Observation("mean_force_level_count", 0.0, 1.0, "(only with `level_window` > 0) clean steps averaged so far over "
+                "`level_window`, at most 1", when=_has_level_window),
     Observation("pending_action", -1.0, 1.0, "(only with `action_delay` > 0) the action already sent that drives the "
                 "next step (the state of the dead time; the drive's hold action right after a reset)",
                 when=_has_delay),

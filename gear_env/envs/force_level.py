@@ -60,6 +60,23 @@ def force_level(omega_mid: np.ndarray, force_rms_obs: np.ndarray) -> tuple[np.nd
     return np.where(known, level, np.nan), known
 
 
+def mean_level_update(
+    q: np.ndarray, count: np.ndarray, omega_mid: np.ndarray, force_rms_obs: np.ndarray, use: np.ndarray, window: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """One step of the ``level_window`` average of the pair's q = rho / h(omega) (the ``mean_force_level`` entry,
+    and the estimate of ``agents.demand_scripts.FilteredFollow``): the steps with ``use`` add their sensed q,
+    a running mean over the first ``window`` of them, then an exponential average of weight 1/``window``.
+    Averaging q rather than log q keeps it unbiased under additive sensor noise on ``force_rms``, which for a
+    precise pair is larger than the reading itself. Returns the new (q, count)."""
+    w = np.asarray(omega_mid, float)
+    use = np.asarray(use, bool)
+    sensed = np.expm1(np.asarray(force_rms_obs, float)) / np.exp(np.interp(w, H_OMEGAS, LOG_H))
+    count = np.where(use, np.asarray(count, float) + 1.0, count)
+    k = 1.0 / np.minimum(np.maximum(count, 1.0), window)
+    q = np.where(use, q + k * (sensed - q), q)
+    return q, count
+
+
 __all__ = [
     "H_OMEGAS",
     "LEVEL_CLIP",
