@@ -81,6 +81,26 @@ def test_rl_zoo_hyperparams_file_matches_the_shipped_policy():
     assert set(entry) - zoo_keys <= set(inspect.signature(PPO.__init__).parameters)
 
 
+def test_rl_zoo_limit_task_entry_is_stock_sb3_ppo():
+    """The GearSpeedDemandLimit-v0 entry is SB3's PPO with its defaults (the stock-learner result of the task
+    page), written out so that gear-env train, whose own defaults differ, runs the same learner."""
+    import inspect
+
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.policies import ActorCriticPolicy
+
+    entry = yaml.safe_load(CONF.read_text())["GearSpeedDemandLimit-v0"]
+    assert (entry["n_envs"], entry["n_timesteps"], entry["normalize"]) == (8, 300000, True)
+    defaults = inspect.signature(PPO.__init__).parameters
+    zoo_keys = {"n_envs", "n_timesteps", "normalize", "policy_kwargs", "env_kwargs", "policy"}
+    for key in set(entry) - zoo_keys:
+        assert entry[key] == defaults[key].default, key
+    pk = eval(entry["policy_kwargs"], {})  # how rl-zoo3 reads it (a trusted file of this repository)
+    assert pk["log_std_init"] == inspect.signature(ActorCriticPolicy.__init__).parameters["log_std_init"].default
+    assert pk["net_arch"] == [64, 64]  # SB3's MlpPolicy default for PPO: pi and vf [64, 64] each
+    assert "env_kwargs" not in entry  # the registered task as it is
+
+
 @pytest.mark.slow
 def test_rl_zoo_train_then_enjoy_replays_what_gear_env_evaluates(tmp_path):
     """rl_zoo3.train reads the conf file (values in the saved config.yml) and writes a model with its
