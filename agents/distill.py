@@ -62,6 +62,18 @@ def _actor_mean(policy: Any, obs: Any) -> Any:
     return policy.get_distribution(obs).distribution.mean
 
 
+def _loss(pred: Any, label: Any, quantile: float | None) -> Any:
+    """Squared error (the teacher's mean action given the observation) or, with ``quantile`` q, the pinball loss
+    mean(max(q u, (q - 1) u)), u = label - pred, whose minimiser is the labels' q-quantile (Koenker & Bassett
+    1978)."""
+    import torch
+
+    if quantile is None:
+        return torch.mean((pred - label) ** 2)
+    u = label - pred
+    return torch.mean(torch.maximum(quantile * u, (quantile - 1.0) * u))
+
+
 def distill(
     model: Any,
     vecnorm: Any,
@@ -153,7 +165,7 @@ def distill(
                 perm = torch.randperm(len(Xt), generator=rng_torch)
                 for i in range(0, len(Xt), p["batch_size"]):
                     j = perm[i : i + p["batch_size"]]
-                    loss = torch.mean((_actor_mean(policy, Xt[j]) - Yt[j]) ** 2)
+                    loss = _loss(_actor_mean(policy, Xt[j]), Yt[j], p["quantile"])
                     opt.zero_grad()
                     loss.backward()
                     opt.step()

@@ -68,6 +68,8 @@ def test_bad_settings_name_the_field():
         check_distill(2, {"episodes": 0})
     with pytest.raises(ValueError, match="distill_learning_rate"):
         check_distill(2, {"learning_rate": float("nan")})
+    with pytest.raises(ValueError, match=r"distill_quantile must be null \(squared error\) or a number in \(0, 1\)"):
+        check_distill(2, {"quantile": 1.0})
     with pytest.raises(ValueError, match="timesteps must be an integer in \\[1, "):
         TrainOptions(out="x", timesteps=0)  # 0 means "distillation only": refused without a distillation
 
@@ -92,6 +94,26 @@ def test_the_student_learns_the_teacher_and_the_run_is_ordinary(tmp_path):
         capture_output=True, text=True, cwd=tmp_path, env=_env(),
     )  # fmt: skip
     assert r.returncode == 0, r.stderr
+
+
+def test_the_quantile_loss_is_minimised_by_the_labels_quantile():
+    """With ``quantile`` q the fit is the labels' q-quantile (pinball loss), without it their mean: a constant
+    fitted by gradient descent to skewed labels lands on numpy's quantile / mean."""
+    import torch
+
+    from agents.distill import _loss
+
+    labels = torch.as_tensor(np.random.default_rng(0).exponential(1.0, 4000), dtype=torch.float32)
+    for q, want in ((None, float(labels.mean())), (0.3, float(np.quantile(labels.numpy(), 0.3))),
+                    (0.8, float(np.quantile(labels.numpy(), 0.8)))):  # fmt: skip
+        c = torch.zeros((), requires_grad=True)
+        opt = torch.optim.Adam([c], lr=0.02)
+        for _ in range(1500):
+            opt.zero_grad()
+            _loss(c.expand(len(labels)), labels, q).backward()
+            opt.step()
+        assert float(c) == pytest.approx(want, abs=0.02), q
+    assert abs(np.quantile(labels.numpy(), 0.3) - float(labels.mean())) > 0.5  # the three targets differ
 
 
 def test_distillation_is_deterministic_under_a_seed(tmp_path):

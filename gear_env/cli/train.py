@@ -102,7 +102,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="distillation setting: episodes (per iteration, default 100), epochs (20), learning_rate (1e-3), "
-        "final_lr_fraction (1.0), batch_size (256)",
+        "final_lr_fraction (1.0), batch_size (256), quantile (null: squared error; q in (0, 1): pinball loss)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--no-tensorboard", action="store_true", help="no TensorBoard logs")
