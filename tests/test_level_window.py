@@ -1,5 +1,6 @@
 """``level_window``: the ``mean_force_level`` entries (the pair's q averaged over clean steps, as the
-``filtered-follow`` script estimates it), checked against the documented definition written out step by step."""
+``filtered-follow`` script estimates it), checked against the documented definition written out step by step
+(the single and vector env agree bit for bit: tests/test_limit_rate.py)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,6 @@ from gear_env.envs.env import GearSpeedEnv
 from gear_env.envs.env_config import task_config
 from gear_env.envs.env_terms import TROUBLE_CONTACT
 from gear_env.envs.force_level import H_OMEGAS, LOG_H, TROUBLE_DEFECT
-from gear_env.envs.vector_env import GearSpeedVectorEnv
 
 SHORT = {"periods_per_step": 8, "warmup_periods": 16, "max_steps": 40, "force_level": True, "level_window": 4}
 
@@ -69,18 +69,3 @@ def test_mean_force_level_follows_its_definition_step_by_step():
             if term or trunc:
                 break
     assert counted > 20 and ema_steps > 5  # both phases ran, so the test could fail
-
-
-def test_vector_env_is_the_single_env_bit_for_bit():
-    cfg = task_config("GearSpeedDemandHard-v0", SHORT)
-    vec = GearSpeedVectorEnv(3, config=cfg)
-    singles = [GearSpeedEnv(cfg) for _ in range(3)]
-    vo, _ = vec.reset(seed=[1, 2, 3])
-    np.testing.assert_array_equal(vo, np.stack([e.reset(seed=s)[0] for e, s in zip(singles, [1, 2, 3])]))
-    rng = np.random.default_rng(4)
-    for _ in range(20):
-        a = rng.uniform(-1, 1, (3, 1)).astype(np.float32)
-        vo, vr, *_ = vec.step(a)
-        outs = [e.step(a[k]) for k, e in enumerate(singles)]
-        np.testing.assert_array_equal(vo, np.stack([o[0] for o in outs]))
-        np.testing.assert_array_equal(vr, np.array([o[1] for o in outs]))

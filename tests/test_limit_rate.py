@@ -101,15 +101,20 @@ def test_force_level_is_the_scaled_observation_and_the_steady_copy_keeps_clean_s
     assert np.isfinite(force_level(w_mid, np.array([0.5, 0.5]))[0]).tolist() == [True, False]
 
 
-def test_vector_env_is_the_single_env_bit_for_bit():
-    cfg = task_config("GearSpeedDemandLimit-v0", SHORT)
+@pytest.mark.parametrize(
+    "task, settings, steps",
+    [("GearSpeedDemandLimit-v0", SHORT, 12),
+     ("GearSpeedDemandHard-v0", {**SHORT, "force_level": True, "level_window": 4}, 20)],  # + the level_window entries
+)  # fmt: skip
+def test_vector_env_is_the_single_env_bit_for_bit(task, settings, steps):
+    cfg = task_config(task, settings)
     vec = GearSpeedVectorEnv(3, config=cfg)
     singles = [GearSpeedEnv(cfg) for _ in range(3)]
     vo, _ = vec.reset(seed=[1, 2, 3])
     so = [e.reset(seed=s)[0] for e, s in zip(singles, [1, 2, 3])]
     np.testing.assert_array_equal(vo, np.stack(so))
     rng = np.random.default_rng(4)
-    for _ in range(12):
+    for _ in range(steps):
         a = rng.uniform(-1, 1, (3, 1)).astype(np.float32)
         vo, vr, *_ = vec.step(a)
         outs = [e.step(a[k]) for k, e in enumerate(singles)]
