@@ -15,7 +15,8 @@ Specs (case-sensitive):
 ``delayed-oracle:K``        (GearSpeedDemand-v0) fixed-best for K steps, then the oracle that knows the pair
 ``identify-follow``         (GearSpeedDemand-v0) sensor-only: identify the pair, follow the demand to its edge
 ``sensor-servo``            (GearSpeedDemand-v0) sensor-only memoryless servo on the sensed force level
-``filtered-follow[:N]``      (GearSpeedDemandHard-v0) sensor-only: the sensed pair averaged over N clean steps
+``filtered-follow[:N[:S]]`` (GearSpeedDemandHard-v0) sensor-only: the sensed pair averaged over N clean steps,
+                            the hold speed shifted by S (omega units)
 ==========================  ===========================================================================
 
 The last three are built from ``DEMAND_SCRIPTS`` (name -> factory, help line; agents/demand_scripts.py).
@@ -49,7 +50,7 @@ NAMES = (
     "delayed-oracle:K",
     "identify-follow",
     "sensor-servo",
-    "filtered-follow[:N]",
+    "filtered-follow[:N[:S]]",
 )
 
 
@@ -63,16 +64,34 @@ def _delayed_oracle(arg: str | None, config: Any) -> Any:
     return DelayedOracle(config, int(arg))
 
 
+FILTERED_FOLLOW_SHIFT = (-0.5, 0.5)
+"""The range of ``filtered-follow:N:SHIFT``'s shift of the hold speed (omega units)."""
+
+
 def _filtered_follow(arg: str | None, config: Any) -> Any:
     from .demand_scripts import FilteredFollow
 
     if arg is None:
         return FilteredFollow(config)
-    if not arg.strip().isdigit():
+    window, sep, shift = arg.partition(":")
+    if not window.strip().isdigit():
         raise ValueError(
-            f"policy spec 'filtered-follow:{arg}': N must be an integer window in steps (filtered-follow:8)"
+            f"policy spec 'filtered-follow:{arg}': N must be an integer window in steps (filtered-follow:8, "
+            "filtered-follow:6:-0.02)"
         )
-    return FilteredFollow(config, int(arg))
+    if not sep:
+        return FilteredFollow(config, int(window))
+    lo, hi = FILTERED_FOLLOW_SHIFT
+    try:
+        value = float(shift)
+    except ValueError:
+        value = math.nan
+    if not lo <= value <= hi:  # also refuses NaN and inf
+        raise ValueError(
+            f"policy spec 'filtered-follow:{arg}': SHIFT must be a number in [{lo}, {hi}] (omega units added to the "
+            f"hold speed, e.g. filtered-follow:6:-0.02), got {shift!r}"
+        )
+    return FilteredFollow(config, int(window), value)
 
 
 def _no_arg(cls_name: str) -> Any:
@@ -99,7 +118,8 @@ DEMAND_SCRIPTS: dict[str, tuple[Any, str]] = {
     "sensor-servo": (_no_arg("SensorServo"), "memoryless servo: step towards the edge level of the sensed force"),
     "filtered-follow": (
         _filtered_follow,
-        "noisy sensors: average the sensed pair over N clean steps, follow the demand to its edge (filtered-follow:N)",
+        "noisy sensors: average the sensed pair over N clean steps, follow the demand to its edge shifted by S "
+        "(filtered-follow:N[:S])",
     ),
 }
 """The baselines of GearSpeedDemand-v0 (agents/demand_scripts.py): spec name -> (factory(arg, config), help line)."""

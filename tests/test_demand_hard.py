@@ -173,12 +173,32 @@ def test_filtered_follow_identifies_a_pair_through_the_noise():
     assert abs(np.log(state["q"][0]) - np.log(0.5)) < 0.25
 
 
-@pytest.mark.parametrize("spec", ["filtered-follow:x", "filtered-follow:0", "filtered-follow:-3"])
+@pytest.mark.parametrize(
+    "spec",
+    ["filtered-follow:x", "filtered-follow:0", "filtered-follow:-3", "filtered-follow:6:x", "filtered-follow:6:0.6",
+     "filtered-follow:6:nan", "filtered-follow:6:-inf", "filtered-follow:6:", "filtered-follow::0.1"],
+)  # fmt: skip
 def test_filtered_follow_spec_errors(spec):
     from agents.registry import resolve_policy
 
     with pytest.raises(ValueError, match="filtered-follow"):
         resolve_policy(spec, gym.make("GearSpeedDemandHard-v0").unwrapped.config, env_id="GearSpeedDemandHard-v0")
+
+
+def test_filtered_follow_spec_with_a_shift_moves_the_hold_speed():
+    """``filtered-follow:N:S``: the window N and the hold speed shifted by S (omega units), named by its spec."""
+    from agents.registry import resolve_policy
+
+    cfg = gym.make("GearSpeedDemandHard-v0").unwrapped.config
+    base = resolve_policy("filtered-follow:6", cfg, env_id="GearSpeedDemandHard-v0")
+    tuned = resolve_policy("filtered-follow:6:-0.02", cfg, env_id="GearSpeedDemandHard-v0")
+    assert (base.name, tuned.name) == ("filtered-follow:6", "filtered-follow:6:-0.02")
+    assert tuned.window == 6 and tuned.shift == -0.02 and base.shift == 0.0
+    logq = np.array([-1.0, 0.0, 0.5, np.nan])
+    fin = np.isfinite(logq)
+    assert np.allclose(tuned.edge(logq)[fin], base.edge(logq)[fin] - 0.02)
+    assert tuned.edge(logq)[~fin] == base.edge(logq)[~fin]  # an unknown pair: the floor either way
+    assert resolve_policy("filtered-follow:8:0", cfg, env_id="GearSpeedDemandHard-v0").name == "filtered-follow"
 
 
 def test_the_shipped_policy_runs_on_the_task():
