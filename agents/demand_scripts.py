@@ -174,7 +174,8 @@ class FilteredFollow(SensorServo):
             raise ValueError(f"filtered-follow:N needs a window N in [1, 1000] steps, got {window!r}")
         self.window, self.penalty = int(window), float(penalty)
         self.margin = 2.0 * self.sensor_noise
-        self.name = "filtered-follow" + (f":{self.window}" if window != 8 or shift else "") + (f":{shift:g}" if shift else "")
+        suffix = (f":{self.window}" if window != 8 or shift else "") + (f":{shift:g}" if shift else "")
+        self.name = "filtered-follow" + suffix  # its policy spec
 
     def initial_state(self, n: int) -> dict[str, np.ndarray]:
         return {"t": np.zeros(n, np.int64), "q": np.zeros(n), "count": np.zeros(n)}
