@@ -188,11 +188,13 @@ def test_the_zoo_entry_is_the_distillation_recipe_for_gear_env_train_too(tmp_pat
     limit = {"action_mode": "limit", "action_range": [1.15, 1.8], "reference_filter": 1.0}
     assert {k: opts.env_config[k] for k in limit} == limit
     hard = load_zoo_entry(conf, "GearSpeedDemandHard-v0")
-    assert hard["env_kwargs"] == {} and hard["distill"] == {"iterations": 12, "quantile": 0.4}
-    opts = options_from_args(
-        p.parse_args(["--out", str(tmp_path / "h"), "--env", "GearSpeedDemandHard-v0", "--hyperparams", str(conf)])
-    )
-    assert (opts.distill, opts.distill_params) == (12, {"quantile": 0.4})  # the shipped Hard recipe
+    assert hard["env_kwargs"] == {} and hard["distill"] == {"iterations": 12, "quantile": 0.4, "eval_episodes": 64}
+    hard_args = ["--out", str(tmp_path / "h"), "--env", "GearSpeedDemandHard-v0", "--hyperparams", str(conf)]
+    opts = options_from_args(p.parse_args(hard_args))
+    # the shipped Hard recipe: its kept round chosen on 64 in-training evaluation episodes
+    assert (opts.distill, opts.distill_params, opts.eval_episodes) == (12, {"quantile": 0.4}, 64)
+    assert options_from_args(p.parse_args([*hard_args, "--eval-episodes", "8"])).eval_episodes == 8  # explicit wins
+    assert options_from_args(p.parse_args(hard_args[:4])).eval_episodes == 16  # without the entry: the default
     bad = tmp_path / "bad.yml"
     bad.write_text(f"{ENV}:\n  callback: stable_baselines3.common.callbacks.CheckpointCallback\n")
     with pytest.raises(ValueError, match="runs only agents.distill.DistillCallback"):

@@ -216,3 +216,17 @@ def test_training_without_tensorboard_writes_nothing_to_the_system_temp_dir(tmp_
     assert tempfile.gettempdir() == str(systmp)
     train(_opts(tmp_path / "run", timesteps=128, eval_freq=0, checkpoint_freq=0))
     assert not [p.name for p in systmp.iterdir() if p.name.startswith("SB3-")]
+
+
+def test_gear_env_train_resume_keeps_the_stored_evaluation_episodes(run_dir):
+    """``gear-env train --resume`` without ``--eval-episodes`` evaluates on the run's stored number of episodes
+    (here 2), not the CLI default; an explicit value still wins."""
+    import argparse
+
+    from gear_env.cli.train import DEFAULT_EVAL_EPISODES, add_arguments, options_from_args
+
+    p = argparse.ArgumentParser()
+    add_arguments(p)
+    assert RunFolder(run_dir).read_config()["train"]["eval_episodes"] == 2 != DEFAULT_EVAL_EPISODES
+    assert options_from_args(p.parse_args(["--out", str(run_dir), "--resume"])).eval_episodes == 2
+    assert options_from_args(p.parse_args(["--out", str(run_dir), "--resume", "--eval-episodes", "5"])).eval_episodes == 5

@@ -19,6 +19,7 @@ GEAR_ENV_IDS = tuple(TASK_SETTINGS)
 MAX_NUM_ENVS = 1024  # the same bound as agents.ppo.MAX_NUM_ENVS (checked again there)
 MAX_TIMESTEPS = 10**12
 DEFAULT_NUM_ENVS = 16
+DEFAULT_EVAL_EPISODES = 16  # agents.ppo.TrainOptions.eval_episodes
 
 DESCRIPTION = (
     "Train SB3 PPO on GearSpeed-v0 (vector env, VecNormalize, checkpoints, --resume). Writes a run folder: "
@@ -79,7 +80,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="evaluate every N total steps (0 = only at the end)",
     )
     p.add_argument(
-        "--eval-episodes", type=int_range(1, 100_000), default=16, help="episodes per evaluation (default 16)"
+        "--eval-episodes",
+        type=int_range(1, 100_000),
+        default=None,
+        help="episodes per evaluation, which also choose the distillation's kept round (default 16, or the "
+        "eval_episodes of --hyperparams' DistillCallback; with --resume the stored value)",
     )
     p.add_argument(
         "--checkpoint-freq",
@@ -183,6 +188,7 @@ def options_from_args(args: argparse.Namespace) -> Any:
     timesteps, num_envs_arg = args.timesteps, args.num_envs
     zoo_ppo: dict[str, Any] = {}
     zoo_distill: dict[str, Any] = {}
+    eval_episodes = args.eval_episodes
     if getattr(args, "hyperparams", None):
         from agents.hyperparams import load_zoo_entry
 
@@ -201,12 +207,16 @@ def options_from_args(args: argparse.Namespace) -> Any:
         if not explicit_env:  # resume with the stored environment unless the user asked for something else
             env_cfg, env_id = dict(stored["env_config"]), stored["env_id"]
         ppo = {**dict(stored.get("ppo", {})), **ppo}  # stored hyper-parameters, explicit --ppo on top (checked)
+        if eval_episodes is None:
+            eval_episodes = stored.get("train", {}).get("eval_episodes")
     distill = int(getattr(args, "distill", 0) or 0)
     distill_params = _kv(getattr(args, "distill_set", []) or [], "--distill-set")
     if zoo_distill and not distill:  # the zoo entry's DistillCallback: the same distillation
         distill = zoo_distill.pop("iterations", 12)
         stops = zoo_distill.pop("stop", True)
-        zoo_distill.pop("eval_episodes", None)
+        zoo_eval = zoo_distill.pop("eval_episodes", None)
+        if eval_episodes is None and zoo_eval is not None:  # the callback's evaluation choosing the kept round
+            eval_episodes = int(zoo_eval)
         zoo_distill.pop("verbose", None)
         distill_params = {**zoo_distill, **distill_params}
         if stops and args.timesteps is None:
@@ -227,7 +237,7 @@ def options_from_args(args: argparse.Namespace) -> Any:
         num_envs=num_envs,
         seed=args.seed,
         eval_freq=args.eval_freq,
-        eval_episodes=args.eval_episodes,
+        eval_episodes=DEFAULT_EVAL_EPISODES if eval_episodes is None else int(eval_episodes),
         checkpoint_freq=args.checkpoint_freq,
         resume=args.resume,
         overwrite=args.overwrite,
