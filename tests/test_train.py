@@ -228,5 +228,6 @@ def test_gear_env_train_resume_keeps_the_stored_evaluation_episodes(run_dir):
     p = argparse.ArgumentParser()
     add_arguments(p)
     assert RunFolder(run_dir).read_config()["train"]["eval_episodes"] == 2 != DEFAULT_EVAL_EPISODES
-    assert options_from_args(p.parse_args(["--out", str(run_dir), "--resume"])).eval_episodes == 2
-    assert options_from_args(p.parse_args(["--out", str(run_dir), "--resume", "--eval-episodes", "5"])).eval_episodes == 5
+    resume = ["--out", str(run_dir), "--resume"]
+    assert options_from_args(p.parse_args(resume)).eval_episodes == 2
+    assert options_from_args(p.parse_args([*resume, "--eval-episodes", "5"])).eval_episodes == 5
