@@ -170,6 +170,9 @@ def test_the_own_learner_loop_of_the_docs_runs(tmp_path):
     assert len(losses) == 3 and all(0 <= v < 0.1 for v in losses), r.stdout
 
 
+DISTILL = "agents.distill.DistillCallback"
+
+
 def test_the_zoo_entry_is_the_distillation_recipe_for_gear_env_train_too(tmp_path):
     """agents/hyperparams/ppo.yml's GearSpeedDemand-v0 entry names agents.distill.DistillCallback; gear-env train
     --hyperparams turns it into --distill 12 (distillation only); any other callback is refused."""
@@ -195,6 +198,11 @@ def test_the_zoo_entry_is_the_distillation_recipe_for_gear_env_train_too(tmp_pat
     assert (opts.distill, opts.distill_params, opts.eval_episodes) == (12, {"quantile": 0.4}, 64)
     assert options_from_args(p.parse_args([*hard_args, "--eval-episodes", "8"])).eval_episodes == 8  # explicit wins
     assert options_from_args(p.parse_args(hard_args[:4])).eval_episodes == 16  # without the entry: the default
+    for value in ("2.5", "0", "true", "'64'"):
+        odd = tmp_path / "odd.yml"
+        odd.write_text(f"{ENV}:\n  callback:\n    - {DISTILL}:\n        eval_episodes: {value}\n")
+        with pytest.raises(ValueError, match=r"eval_episodes must be an integer in \[1, 100000\]"):
+            options_from_args(p.parse_args(["--out", str(tmp_path / "o"), "--env", ENV, "--hyperparams", str(odd)]))
     bad = tmp_path / "bad.yml"
     bad.write_text(f"{ENV}:\n  callback: stable_baselines3.common.callbacks.CheckpointCallback\n")
     with pytest.raises(ValueError, match="runs only agents.distill.DistillCallback"):

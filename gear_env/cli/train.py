@@ -216,7 +216,12 @@ def options_from_args(args: argparse.Namespace) -> Any:
         stops = zoo_distill.pop("stop", True)
         zoo_eval = zoo_distill.pop("eval_episodes", None)
         if eval_episodes is None and zoo_eval is not None:  # the callback's evaluation choosing the kept round
-            eval_episodes = int(zoo_eval)
+            if isinstance(zoo_eval, bool) or not isinstance(zoo_eval, int) or not 1 <= zoo_eval <= 100_000:
+                raise ValueError(
+                    f"--hyperparams {args.hyperparams}: DistillCallback eval_episodes must be an integer in "
+                    f"[1, 100000], got {zoo_eval!r}"
+                )
+            eval_episodes = zoo_eval
         zoo_distill.pop("verbose", None)
         distill_params = {**zoo_distill, **distill_params}
         if stops and args.timesteps is None:
