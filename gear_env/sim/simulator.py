@@ -283,7 +283,10 @@ class GearSimulator:
             steps, N chosen so that their estimated error is at most ``tol``, and Richardson-
             extrapolated (:func:`gear_env.sim.kernels.integrate_tol`; measured errors in
             docs/SIMULATOR.md). :meth:`record` then takes fixed steps, twice the last N. In
-            [1e-8, 0.1]; not together with ``steps_per_period``. None (default): fixed steps.
+            [1e-8, 0.1]; not together with ``steps_per_period``. None (default): fixed steps. Below
+            omega ~ 0.5, next to the period doublings, the error over many periods is not bounded by
+            ``tol`` (up to 1.5e-2 b0 over 40 periods at tol 3e-3, omega = 0.3): use fixed steps or
+            tol <= 3e-4 there (docs/SIMULATOR.md).
     """
 
     def __init__(
