@@ -156,6 +156,10 @@ class IdentifyFollow(SensorServo):
         return np.maximum(target, self.floor), state
 
 
+FILTERED_FOLLOW_SHIFT = (-0.5, 0.5)
+"""The range of :class:`FilteredFollow`'s ``shift`` of the hold speed (omega units; ``filtered-follow:N:S``)."""
+
+
 class FilteredFollow(SensorServo):
     """For noisy sensors (``GearSpeedDemandHard-v0``): the pair's q = rho / h(omega) sensed on every clean step
     is averaged (a running mean over the first ``window`` clean steps, then an exponential average with weight
@@ -172,6 +176,12 @@ class FilteredFollow(SensorServo):
         super().__init__(config, shift, floor, 1.0)
         if isinstance(window, bool) or not isinstance(window, (int, np.integer)) or not 1 <= window <= 1000:
             raise ValueError(f"filtered-follow:N needs a window N in [1, 1000] steps, got {window!r}")
+        lo, hi = FILTERED_FOLLOW_SHIFT
+        if not lo <= self.shift <= hi:  # also refuses NaN and inf
+            raise ValueError(
+                f"filtered-follow:N:S needs a shift S in [{lo}, {hi}] (omega units added to the hold speed, e.g. "
+                f"filtered-follow:6:-0.02), got {shift!r}"
+            )
         self.window, self.penalty = int(window), float(penalty)
         self.margin = 2.0 * self.sensor_noise
         suffix = (f":{self.window}" if window != 8 or shift else "") + (f":{shift:g}" if shift else "")
@@ -218,4 +228,4 @@ class DelayedOracle(ScriptedPolicy):
         return src._targets(omega, obs, state)
 
 
-__all__ = ["DelayedOracle", "FilteredFollow", "IdentifyFollow", "SensorServo", "force_shape"]
+__all__ = ["FILTERED_FOLLOW_SHIFT", "DelayedOracle", "FilteredFollow", "IdentifyFollow", "SensorServo", "force_shape"]

@@ -215,12 +215,7 @@ def options_from_args(args: argparse.Namespace) -> Any:
         distill = zoo_distill.pop("iterations", 12)
         stops = zoo_distill.pop("stop", True)
         zoo_eval = zoo_distill.pop("eval_episodes", None)
-        if eval_episodes is None and zoo_eval is not None:  # the callback's evaluation choosing the kept round
-            if isinstance(zoo_eval, bool) or not isinstance(zoo_eval, int) or not 1 <= zoo_eval <= 100_000:
-                raise ValueError(
-                    f"--hyperparams {args.hyperparams}: DistillCallback eval_episodes must be an integer in "
-                    f"[1, 100000], got {zoo_eval!r}"
-                )
+        if eval_episodes is None:  # the callback's evaluation choosing the kept round (TrainOptions checks it)
             eval_episodes = zoo_eval
         zoo_distill.pop("verbose", None)
         distill_params = {**zoo_distill, **distill_params}
@@ -242,7 +237,7 @@ def options_from_args(args: argparse.Namespace) -> Any:
         num_envs=num_envs,
         seed=args.seed,
         eval_freq=args.eval_freq,
-        eval_episodes=DEFAULT_EVAL_EPISODES if eval_episodes is None else int(eval_episodes),
+        eval_episodes=DEFAULT_EVAL_EPISODES if eval_episodes is None else eval_episodes,
         checkpoint_freq=args.checkpoint_freq,
         resume=args.resume,
         overwrite=args.overwrite,
