@@ -11,6 +11,10 @@ summed time of fixed 192 over the summed time of the tol mode (> 1: tol mode fas
     python benchmarks/bench_tolerance.py                      # omega step 0.02 (~5 min)
     python benchmarks/bench_tolerance.py --omega-step 0.1 --tols 1e-3 3e-4
     python benchmarks/bench_tolerance.py --tols 3e-3 --strict-newton   # A/B of the Newton rule of the runs
+    python benchmarks/bench_tolerance.py --tols 3e-3 --fox-goodwin 64 96 --fixed 64 96   # the schemes side by side
+
+``--fox-goodwin N ...`` adds fixed-step modes with Fox-Goodwin's Newmark beta 1/12
+(``GearParams(newmark_beta=1/12)``), ``--fixed N ...`` fixed-step modes of the paper's beta 1/4 at other step counts.
 
 ``--strict-newton`` adds every tol mode a second time with the Newton iteration of the fixed-step drivers
 (``kernels.TOL_DQ_SCALE = 0``: a dynamic-model update is final only below ``DQ_LINEAR`` = 1e-4 b0), so the
@@ -27,6 +31,7 @@ import numpy as np
 
 import gear_env.sim.kernels as K
 from gear_env import GearParams, GearSimulator
+from gear_env.sim.params import FOX_GOODWIN_BETA
 from gear_env.sim.reference import reference_poincare
 
 
@@ -43,6 +48,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--strict-newton", action="store_true",
                     help="also run every tol mode with the fixed-step drivers' Newton rule (A/B)")  # fmt: skip
+    ap.add_argument("--fox-goodwin", type=int, nargs="*", default=[], metavar="N",
+                    help="also time fixed N steps per period with Newmark beta 1/12 (Fox-Goodwin)")  # fmt: skip
+    ap.add_argument("--fixed", type=int, nargs="*", default=[], metavar="N",
+                    help="also time fixed N steps per period with the paper's beta 1/4")  # fmt: skip
     args = ap.parse_args(argv)
     omegas = np.round(np.arange(0.3, 3.0 + 1e-9, args.omega_step), 6)
     if args.speed_only:
@@ -60,40 +69,44 @@ def main(argv: list[str] | None = None) -> int:
             if np.max(np.abs(ref.states[-1] - ref.states[-2])) <= 1e-5 * (1 + np.max(np.abs(ref.states[-1]))):
                 cases.append((model, float(w), x0, ref.states))
     dq_default = float(K.TOL_DQ_SCALE)
-    modes = [("fixed 192", None)] + [(f"tol {t:g}", t) for t in args.tols]
+    paper, fg = GearParams(), GearParams(newmark_beta=FOX_GOODWIN_BETA)
+    # (name, tol, steps per period, parameters)
+    modes = [("fixed 192", None, 192, paper)] + [(f"tol {t:g}", t, None, paper) for t in args.tols]
     if args.strict_newton:
-        modes += [(f"tol {t:g} strict", t) for t in args.tols]
+        modes += [(f"tol {t:g} strict", t, None, paper) for t in args.tols]
+    modes += [(f"fixed {n}", None, n, paper) for n in args.fixed]
+    modes += [(f"fox-goodwin {n}", None, n, fg) for n in args.fox_goodwin]
 
     def newton_rule(name: str) -> None:
         K.TOL_DQ_SCALE = 0.0 if name.endswith("strict") else dq_default  # read by integration.integrate
 
-    errs: dict[str, list[float]] = {m: [] for m, _ in modes}
-    steps: dict[str, list[float]] = {m: [] for m, _ in modes}
+    errs: dict[str, list[float]] = {m[0]: [] for m in modes}
+    steps: dict[str, list[float]] = {m[0]: [] for m in modes}
     for model, w, x0, ref in [] if args.speed_only else cases:
-        for name, tol in modes:
+        for name, tol, nsp, par in modes:
             newton_rule(name)
-            sim = GearSimulator(GearParams(), model, 192 if tol is None else None, w, x0, tol=tol)
+            sim = GearSimulator(par, model, nsp, w, x0, tol=tol)
             iv = sim.advance(10)
             errs[name].append(float(np.max(np.abs(iv.poincare[:, :10] - ref))))
             steps[name].append(float(iv.stats[19]) / 10 * (1.5 if tol is not None else 1.0))
     if not args.speed_only:
         print(f"{len(cases)} period-1 orbits (omega 0.3-3.0 step {args.omega_step}, both models), 10 Poincare points")
         print("mode        | median error | p95 error | max error | Newmark steps per period (mean)")
-    for name, _ in [] if args.speed_only else modes:
+    for name, *_ in [] if args.speed_only else modes:
         e = np.array(errs[name])
         print(f"{name:16s} | {np.median(e):12.2e} | {np.percentile(e, 95):9.2e} | {np.max(e):9.2e} | "
               f"{np.mean(steps[name]):.0f}")  # fmt: skip
     # speed, interleaved: the same states, all modes in turn, several rounds
     timed = cases if args.speed_only else cases[:: max(1, len(cases) // 12)]
-    total = dict.fromkeys([m for m, _ in modes], 0.0)
-    by_model = {(mo, m): 0.0 for mo in ("constant", "dynamic") for m, _ in modes}
-    for _name, tol in modes:  # compile and warm up
-        GearSimulator(GearParams(), "dynamic", 192 if tol is None else None, 1.0, tol=tol).advance(2)
+    total = dict.fromkeys([m[0] for m in modes], 0.0)
+    by_model = {(mo, m[0]): 0.0 for mo in ("constant", "dynamic") for m in modes}
+    for _name, tol, nsp, par in modes:  # compile and warm up
+        GearSimulator(par, "dynamic", nsp, 1.0, tol=tol).advance(2)
     for _ in range(args.repeats):
         for model, w, x0, _ref in timed:
-            for name, tol in modes:
+            for name, tol, nsp, par in modes:
                 newton_rule(name)
-                sim = GearSimulator(GearParams(), model, 192 if tol is None else None, w, x0, tol=tol)
+                sim = GearSimulator(par, model, nsp, w, x0, tol=tol)
                 t0 = time.perf_counter()
                 sim.advance(args.periods)
                 dt = time.perf_counter() - t0
@@ -104,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     n_per = len(timed) * args.repeats * args.periods
     print(f"\nspeed over {len(timed)} orbits x {args.repeats} rounds x {args.periods} periods, interleaved "
           f"(load average {os.getloadavg()[0]:.1f}):")  # fmt: skip
-    for name, _ in modes:
+    for name, *_ in modes:
         print(f"{name:16s} | {n_per / total[name]:9.0f} mesh periods/s | ratio vs fixed 192: {base / total[name]:.2f}"
               + "".join(f" | {mo} {by_model[mo, 'fixed 192'] / by_model[mo, name]:.2f}"
                         for mo in ("constant", "dynamic") if by_model[mo, name] > 0))  # fmt: skip

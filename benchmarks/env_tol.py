@@ -7,6 +7,9 @@ the cost the CPU time of the steps (the settings interleaved per seed, so drift 
 
     python benchmarks/env_tol.py                 # 10 seeds x 20 steps, about a minute
     python benchmarks/env_tol.py --seeds 20 --steps 40 --json env_tol.json
+    python benchmarks/env_tol.py --vector 16 --rounds 5   # also the vector env's env-steps/s, Fox-Goodwin vs 64 steps
+
+The Fox-Goodwin settings are ``params={"newmark_beta": 1/12}`` (``GearParams.newmark_beta``), at 64 and 96 steps.
 
 ``--json FILE`` writes the run's record (benchmarks/bench_record.py; benchmarks/make_tables.py reads it).
 """
@@ -18,6 +21,7 @@ import time
 
 import numpy as np
 
+FOX_GOODWIN = {"newmark_beta": 1.0 / 12.0}  # GearParams(newmark_beta=1/12) as the env's params setting
 SETTINGS = {
     "64 steps (default)": {},
     "128 steps": {"steps_per_period": 128},
@@ -25,6 +29,8 @@ SETTINGS = {
     "tol 1e-3": {"tol": 1e-3},
     "tol 1e-4": {"tol": 1e-4},
     "tol 1e-5": {"tol": 1e-5},
+    "Fox-Goodwin 64 steps": {"params": FOX_GOODWIN},
+    "Fox-Goodwin 96 steps": {"params": FOX_GOODWIN, "steps_per_period": 96},
 }
 
 
@@ -42,6 +48,31 @@ def episode(env_id: str, seed: int, actions: np.ndarray, **kw) -> tuple[np.ndarr
     return np.array(obs), time.process_time() - t0
 
 
+def vector_rates(env_id: str, n: int, rounds: int, seconds: float) -> dict[str, list[float]]:
+    """Env-steps/s of ``GearSpeedVectorEnv(n)`` (random set-points, auto-reset), the paper's 64 steps and
+    Fox-Goodwin's 64 alternately, ``rounds`` times: CPU time of this process."""
+    from gear_env.envs.env_config import task_config
+    from gear_env.envs.vector_env import GearSpeedVectorEnv
+
+    envs = {
+        "64 steps (default)": GearSpeedVectorEnv(n, task_config(env_id, {})),
+        "Fox-Goodwin 64 steps": GearSpeedVectorEnv(n, task_config(env_id, {"params": FOX_GOODWIN})),
+    }
+    rng = np.random.default_rng(1)
+    for e in envs.values():
+        e.reset(seed=list(range(n)))
+        e.step(rng.uniform(-1, 1, (n, 1)).astype(np.float32))
+    out: dict[str, list[float]] = {k: [] for k in envs}
+    for _ in range(rounds):
+        for name, e in envs.items():
+            steps, t0 = 0, time.process_time()
+            while time.process_time() - t0 < seconds:
+                e.step(rng.uniform(-1, 1, (n, 1)).astype(np.float32))
+                steps += n
+            out[name].append(steps / (time.process_time() - t0))
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     import gear_env  # noqa: F401
 
@@ -49,6 +80,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--env", default="GearSpeedDemand-v0")
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--vector", type=int, default=0, metavar="N",
+                    help="also time GearSpeedVectorEnv(N), Fox-Goodwin 64 steps against 64 steps")  # fmt: skip
+    ap.add_argument("--rounds", type=int, default=5, help="rounds of the vector timing (5)")
     ap.add_argument("--json", metavar="FILE", help="also write a JSON record (benchmarks/make_tables.py reads it)")
     args = ap.parse_args(argv)
     from bench_record import Record, check_json_target
@@ -84,6 +118,17 @@ def main(argv: list[str] | None = None) -> int:
         rec.add(
             f"{args.env}, {name}: CPU per env step", "ms", [ms], note=f"{cpu[name] / base:.2f}x the 64-step default"
         )
+    if args.vector:
+        import os
+
+        rates = vector_rates(args.env, args.vector, args.rounds, 1.0)
+        a, b = np.array(rates["64 steps (default)"]), np.array(rates["Fox-Goodwin 64 steps"])
+        ratio = b / a
+        print(f"\nGearSpeedVectorEnv({args.vector}), {args.rounds} interleaved rounds (load average "
+              f"{os.getloadavg()[0]:.1f}): 64 steps {np.median(a):.0f}, Fox-Goodwin 64 {np.median(b):.0f} env-steps/s; "
+              f"ratio {np.median(ratio):.2f} [{ratio.min():.2f}, {ratio.max():.2f}]")  # fmt: skip
+        rec.add(f"{args.env}, GearSpeedVectorEnv({args.vector}): Fox-Goodwin 64 steps vs 64 steps, env-steps/s",
+                "ratio", [float(np.median(ratio))], note=f"range {ratio.min():.2f}-{ratio.max():.2f}")  # fmt: skip
     if args.json:
         rec.write(args.json)
     return 0

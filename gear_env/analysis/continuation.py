@@ -57,7 +57,14 @@ from .._numba_cache import announce_compile
 from ..errors import SimulationDivergedError
 from ..sim import kernels as K
 from ..sim.params import GearParams, model_code, refuse_extensions
-from ..sim.simulator import NEWTON_MAX_ITER, NEWTON_TOL, GearSimulator, check_omega, default_steps_per_period
+from ..sim.simulator import (
+    NEWTON_MAX_ITER,
+    NEWTON_TOL,
+    GearSimulator,
+    check_omega,
+    check_stable_steps,
+    default_steps_per_period,
+)
 from . import tangent as TG
 from .floquet import check_located
 
@@ -284,8 +291,12 @@ class OrbitMap:
         self.evaluations = 0
 
     def steps(self, omega: float) -> int:
-        """Newmark steps per mesh period used at omega."""
-        return self.fixed_steps if self.fixed_steps is not None else default_steps_per_period(omega)
+        """Newmark steps per mesh period used at omega (ValueError if a fixed count is unstable there under a
+        conditionally stable ``params.newmark_beta``)."""
+        if self.fixed_steps is None:
+            return default_steps_per_period(omega)
+        check_stable_steps(self.params, self.fixed_steps, omega)
+        return self.fixed_steps
 
     def value(self, x: np.ndarray, omega: float, steps: int) -> np.ndarray:
         """P^N(x) (no Jacobian): the located map's kernel (``tangent_map``, so that differences of

@@ -41,6 +41,7 @@ from ..sim.simulator import (
     GearSimulator,
     check_count,
     check_omega,
+    check_stable_steps,
     resolve_steps,
 )
 from . import tangent as TG
@@ -130,6 +131,7 @@ class PeriodMap:
         refuse_extensions(self.params, "Floquet analysis")
         self.period = check_count(period, "period")
         self.steps = resolve_steps(steps_per_period, self.omega)
+        check_stable_steps(self.params, self.steps, self.omega)  # GearParams.newmark_beta < 1/4: refused before work
         self._c = np.ascontiguousarray(self.params.consts)
         self._a = np.zeros(K.NDOF)
         self._pc = np.empty((self.period, K.N_PC))

@@ -23,7 +23,15 @@ import numpy as np
 from ..errors import SimulationDivergedError
 from ..sim import kernels as K
 from ..sim.params import GearParams, model_code, refuse_extensions
-from ..sim.simulator import NEWTON_MAX_ITER, NEWTON_TOL, _check_state, check_count, check_omega, resolve_steps
+from ..sim.simulator import (
+    NEWTON_MAX_ITER,
+    NEWTON_TOL,
+    _check_state,
+    check_count,
+    check_omega,
+    check_stable_steps,
+    resolve_steps,
+)
 
 DEFAULT_D0 = 1e-8
 """Default initial separation (b0 units): large against the Newton tolerance, small against b0."""
@@ -75,6 +83,7 @@ def largest_lyapunov(
     w = check_omega(omega)
     n = check_count(periods, "periods", 2)
     nsteps = resolve_steps(steps_per_period, w)
+    check_stable_steps(params if params is not None else GearParams(), nsteps, w)
     tr = check_count(transient, "transient", 0)
     if not (isinstance(d0, (int, float)) and 0.0 < float(d0) < 1e-2 and math.isfinite(d0)):
         raise ValueError(f"d0 must be a finite separation in (0, 1e-2) b0, got {d0!r}")

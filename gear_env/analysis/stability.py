@@ -41,6 +41,7 @@ from ..sim.simulator import (
     GearSimulator,
     check_count,
     check_omega,
+    check_stable_steps,
     check_steps,
     resolve_steps,
 )
@@ -356,6 +357,8 @@ def stability_map(
     model_code(model)
     steps = None if steps_per_period is None else check_steps(steps_per_period)
     grid = _grid(omega_min, omega_max, points)
+    for wi in grid:  # a conditionally stable Newmark beta (GearParams.newmark_beta): refused before any work
+        check_stable_steps(p, resolve_steps(steps, float(wi)), float(wi))
     key = cache_key(p, model, grid, steps)
     if cache:
         try:

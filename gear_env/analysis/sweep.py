@@ -28,7 +28,14 @@ import numpy as np
 
 from ..sim import kernels as K
 from ..sim.params import GearParams, model_code, refuse_extensions
-from ..sim.simulator import GearSimulator, check_count, check_omega, check_steps, default_steps_per_period
+from ..sim.simulator import (
+    GearSimulator,
+    check_count,
+    check_omega,
+    check_stable_steps,
+    check_steps,
+    default_steps_per_period,
+)
 from .checkpoint import Checkpoint
 from .classify import (
     DEFAULT_LYAP_TOL,
@@ -495,6 +502,8 @@ def _prepare(
     max_period = check_count(max_period, "max_period", 1)
     if isinstance(lyap_tol, bool) or not isinstance(lyap_tol, real) or not (math.isfinite(lyap_tol) and lyap_tol > 0):
         raise ValueError(f"lyap_tol must be a finite number > 0, got {lyap_tol!r}")
+    for wi in w:  # a conditionally stable Newmark beta (GearParams.newmark_beta): refused before any work
+        check_stable_steps(params, steps_for(float(wi), steps_per_period, bool(adaptive_steps)), float(wi))
     cfg = SweepConfig(
         model, direction, transient, periods, params, steps_per_period, bool(adaptive_steps), bool(lyapunov),
         float(tol), int(max_period), float(lyap_tol), max_extend,

@@ -85,12 +85,19 @@ def add_params_options(p: argparse.ArgumentParser) -> None:
         default=16,
         help="stiffness harmonics taken from --pair, 1-64 (default 16)",
     )
+    p.add_argument(
+        "--scheme",
+        choices=("paper", "fox-goodwin"),
+        default=None,
+        help="Newmark scheme: paper (beta 1/4, default, unconditionally stable) or fox-goodwin (beta 1/12: "
+        "less error per step, stable above a step count that grows at low omega; GearParams.newmark_beta)",
+    )
 
 
 def params_from_args(args: argparse.Namespace) -> Any:
     """The :class:`~gear_env.sim.params.GearParams` the parameter options describe (a ValueError names the field)."""
     from ..io import read_json
-    from ..sim.params import GearParams
+    from ..sim.params import FOX_GOODWIN_BETA, NEWMARK_BETA, GearParams
 
     fields: dict[str, Any] = {}
     if getattr(args, "params", None):
@@ -101,6 +108,11 @@ def params_from_args(args: argparse.Namespace) -> Any:
         if getattr(args, "pair", None) or "stiffness_harmonics" in fields:
             raise ValueError("--kappa cannot be combined with a stiffness series (--pair or stiffness_harmonics)")
         fields["kappa"] = args.kappa
+    scheme = getattr(args, "scheme", None)
+    if scheme is not None:
+        if "newmark_beta" in fields:
+            raise ValueError("--scheme cannot be combined with newmark_beta in --params: give one of them")
+        fields["newmark_beta"] = FOX_GOODWIN_BETA if scheme == "fox-goodwin" else NEWMARK_BETA
     if getattr(args, "pair", None):
         from ..sim.geometry import SpurPair
 

@@ -24,6 +24,7 @@ import numpy as np
 from .._numba_cache import announce_compile
 from ..sim import kernels as K
 from ..sim.integration import TOL_N_START, integrate
+from ..sim.linear import newmark_step_limit
 from ..sim.params import C_FS, GearParams, model_code, refuse_extensions
 from . import env_kernels as EK
 from . import env_terms as ET
@@ -194,6 +195,10 @@ class GearSpeedCore:
         self.ACC = np.zeros((n, EK.N_ACC))
         self.S = terms.settings_vector(cfg)
         self.n_tol = np.full(n, TOL_N_START, np.int64)  # with `tol`: each row's coarse step count N
+        # each row's stable Newmark step (natural time; inf for the paper's beta 1/4): steps_per_period is raised
+        # to it per row and interval (Fox-Goodwin at low omega), so a row's steps depend only on its own omega
+        self.h_limit = np.full(n, newmark_step_limit(cfg.params))
+        self.conditional = bool(np.isfinite(self.h_limit).any())
         self._pc_buf = np.zeros((1, cfg.periods_per_step, K.N_PC))
         self._st_buf = np.zeros((1, K.N_STATS))
         self._zeros = np.zeros(n)
@@ -231,9 +236,39 @@ class GearSpeedCore:
         integration failed keep their previous state.
         """
         cfg = self.config
-        m = len(rows)
         if cfg.tol is not None:
             return self._integrate_tol(rows, w0, w1, periods)
+        if self.conditional:
+            return self._integrate_stable(rows, w0, w1, periods)
+        return self._integrate_fixed(rows, w0, w1, periods, cfg.steps_per_period)
+
+    def _integrate_stable(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int):
+        """:meth:`_integrate` under a conditionally stable Newmark beta: each row takes ``steps_per_period`` or
+        the stable count at the lower omega of its interval, whichever is more; rows of equal counts are
+        stepped together (so a row's result does not depend on the others: single and vector env agree)."""
+        cfg = self.config
+        w_low = np.minimum(np.asarray(w0, float), np.asarray(w1, float))
+        with np.errstate(divide="ignore"):
+            need = np.ceil(2.0 * math.pi / (w_low * self.h_limit[rows]))
+        nsp = np.maximum(cfg.steps_per_period, need).astype(np.int64)
+        groups = np.unique(nsp)
+        if groups.size == 1:
+            return self._integrate_fixed(rows, w0, w1, periods, int(groups[0]))
+        m = len(rows)
+        pc = np.zeros((m, periods, K.N_PC))
+        st = np.zeros((m, K.N_STATS))
+        ok = np.zeros(m, bool)
+        elapsed = np.zeros(m)
+        for n_g in groups:
+            sel = np.flatnonzero(nsp == n_g)
+            pc[sel], st[sel], ok[sel], elapsed[sel] = self._integrate_fixed(
+                rows[sel], np.asarray(w0)[sel], np.asarray(w1)[sel], periods, int(n_g)
+            )
+        return pc, st, ok, elapsed
+
+    def _integrate_fixed(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int, nsp: int):
+        """:meth:`_integrate` with ``nsp`` fixed steps per mesh period for every row."""
+        m = len(rows)
         if self.single and m == 1:  # fast path of the single env: no fancy indexing, reused buffers
             r = int(rows[0])
             if self._pc_buf.shape[1] != periods:
@@ -242,7 +277,7 @@ class GearSpeedCore:
             x = self.X[r].copy()
             a = self.A[r].copy()
             run = integrate(
-                x, a, self._C_ro[r], self.code, float(w0[0]), float(w1[0]), periods, cfg.steps_per_period,
+                x, a, self._C_ro[r], self.code, float(w0[0]), float(w1[0]), periods, nsp,
                 poincare=pc[0], stats=st[0],
             )  # fmt: skip
             status, el = run.status, run.elapsed
@@ -256,7 +291,7 @@ class GearSpeedCore:
         W0 = np.ascontiguousarray(w0, float)
         W1 = np.ascontiguousarray(w1, float)
         # SIMD across the rows from LANES_MIN up (same numbers as the scalar batch kernel)
-        run = integrate(X, A, self.C[rows], self.code, W0, W1, periods, cfg.steps_per_period, simd=m >= LANES_MIN)
+        run = integrate(X, A, self.C[rows], self.code, W0, W1, periods, nsp, simd=m >= LANES_MIN)
         status, elapsed, pc, st = run.status, run.elapsed, run.poincare, run.stats
         # the kernel flags non-finite or exploding states; a non-finite statistic would mean the same
         ok = (status == K.OK) & np.isfinite(st).all(axis=1)
@@ -498,6 +533,8 @@ class GearSpeedCore:
                 f"{self.C.shape[1]}: every plant of a family must have as many excitation harmonics as the base"
             )
         self.C[r] = p.consts
+        self.h_limit[r] = newmark_step_limit(p)
+        self.conditional = bool(np.isfinite(self.h_limit).any())
         self.fs[r] = self.C[r, C_FS]
         x0 = np.zeros(K.NSTATE)
         K.static_equilibrium(self._C_ro[r], self.code, 0.0, x0)

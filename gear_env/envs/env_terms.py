@@ -276,8 +276,15 @@ def _max_domega(label: str, v: Any, cfg: Any) -> float:
 
 def _tol(label: str, v: Any, cfg: Any) -> float | None:
     """None (fixed steps) or the error per mesh period in b0 units, in [1e-8, 0.1]."""
+    from ..sim.params import NEWMARK_BETA  # lazy: keeps this module free of numba
+
     if v is None:
         return None
+    if cfg.params.newmark_beta != NEWMARK_BETA:
+        raise ValueError(
+            f"{label} (error control) takes only the paper's Newmark beta (params.newmark_beta = {NEWMARK_BETA}), "
+            f"got {cfg.params.newmark_beta:.6g}; leave tol None (fixed steps)"
+        )
     return check_real(label, v, 1e-8, 0.1)
 
 
@@ -488,7 +495,9 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("params", None, _params, "`GearParams` or dict", "physical parameters (SI); the torques must give a "
             "static mesh force >= 1e-6 N (features are relative to it)", shown="Table 1"),
     Setting("model", "dynamic", choice(*BACKLASH_MODELS), '"dynamic", "constant"', "backlash model"),
-    Setting("steps_per_period", 64, integer(16, 1024), "[16, 1024]", "Newmark steps per mesh period"),
+    Setting("steps_per_period", 64, integer(16, 1024), "[16, 1024]",
+            "Newmark steps per mesh period (with `params.newmark_beta` < 1/4, raised per sub-environment and step "
+            "to the scheme's stable count where omega is low: `gear_env.sim.linear.min_steps_per_period`)"),
     Setting("tol", None, _tol, "None, [1e-8, 0.1]",
             "error per mesh period (b0 units) instead of `steps_per_period`: every mesh period integrated with "
             "contact changes located and N, 2N steps Richardson-extrapolated, N chosen per period "

@@ -56,7 +56,7 @@ N_ROWS = Q_WA + 1
 
 @kernel_inline
 def _lane_k(B, e):
-    """The step constants (``kernels.step_consts``, N_K = 20 of them) of lane e, rows R_K, R_K + 1, ...
+    """The step constants (``kernels.step_consts``, N_K = 21 of them) of lane e, rows R_K, R_K + 1, ...
 
     Written out: ``to_fixed_tuple`` of the column slice gives the same numbers but stops LLVM from
     vectorising the lane loop (3x slower in an interleaved A/B run, benchmarks/ab_compare.py)."""
@@ -64,7 +64,7 @@ def _lane_k(B, e):
     return (
         B[r, e], B[r + 1, e], B[r + 2, e], B[r + 3, e], B[r + 4, e], B[r + 5, e], B[r + 6, e], B[r + 7, e],
         B[r + 8, e], B[r + 9, e], B[r + 10, e], B[r + 11, e], B[r + 12, e], B[r + 13, e], B[r + 14, e],
-        B[r + 15, e], B[r + 16, e], B[r + 17, e], B[r + 18, e], B[r + 19, e],
+        B[r + 15, e], B[r + 16, e], B[r + 17, e], B[r + 18, e], B[r + 19, e], B[r + 20, e],
     )  # fmt: skip
 
 

@@ -81,6 +81,43 @@ def natural_frequencies(params: GearParams | None = None, model: str = "constant
     return np.sqrt(np.sort(lam.real))
 
 
+STABILITY_MARGIN = 0.9
+"""Share of the Newmark stability limit that :func:`newmark_step_limit` allows (the nonlinear terms, the
+dynamic model's geometry and the friction extension move the frequencies a little)."""
+
+
+def newmark_step_limit(params: GearParams | None = None) -> float:
+    """Largest stable Newmark step in natural time (s = omega_n t) for ``params.newmark_beta``.
+
+    beta = 1/4 (the paper's average acceleration) is unconditionally stable: ``math.inf``. For beta < 1/4
+    (gamma = 1/2) the scheme is stable for Omega_max h < 1 / sqrt(1/4 - beta) (sqrt(6) for Fox-Goodwin,
+    beta = 1/12), Omega_max the highest natural frequency (units of omega_n) of the linearised system in
+    contact with the mesh stiffness at its peak over the mesh cycle, taken over both backlash models. The
+    limit returned is :data:`STABILITY_MARGIN` times that.
+    """
+    p = params or GearParams()
+    if p.newmark_beta >= 0.25:
+        return math.inf
+    phi = np.linspace(0.0, 2.0 * math.pi, 1024, endpoint=False)
+    peak = float(np.max(p.stiffness_factor(phi)))
+    w2 = 0.0
+    for model in ("constant", "dynamic"):
+        M, _, K = matrices(p, model)
+        g = mesh_vector(p)
+        K = K + (peak - 1.0) * np.outer(g, g if model == "constant" else g - backlash_gradient(p))
+        w2 = max(w2, float(np.max(np.abs(np.linalg.eigvals(np.linalg.solve(M, K))))))
+    return STABILITY_MARGIN / (math.sqrt(0.25 - p.newmark_beta) * math.sqrt(w2))
+
+
+def min_steps_per_period(params: GearParams | None, omega: float) -> int:
+    """Fewest Newmark steps per mesh period that are stable at meshing frequency ``omega`` (units of
+    omega_n) for ``params.newmark_beta`` (:func:`newmark_step_limit`): 1 for the paper's beta = 1/4."""
+    h = newmark_step_limit(params)
+    if not math.isfinite(h):
+        return 1
+    return max(1, math.ceil(2.0 * math.pi / (omega * h)))
+
+
 def modes(params: GearParams | None = None, model: str = "constant") -> tuple[np.ndarray, np.ndarray]:
     """(frequencies w/omega_n ascending, mode shapes as columns) of the undamped linear system."""
     M, _, K = matrices(params, model)
@@ -153,6 +190,8 @@ __all__ = [
     "linear_frequency_response",
     "matrices",
     "mesh_vector",
+    "min_steps_per_period",
     "modes",
     "natural_frequencies",
+    "newmark_step_limit",
 ]

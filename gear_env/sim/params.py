@@ -48,7 +48,14 @@ C_NU_P = 26  # nu_p = torque_order / z_p: torque cycles per mesh period
 C_NU_G = 27  # nu_g = torque_order / z_g
 C_PH_TP = 28  # ph_p: phase [rad] at mesh phase 0 of the interval (GearSimulator advances it per interval)
 C_PH_TG = 29  # ph_g
-N_CONSTS = 30  # length of the fixed part; the harmonic tail follows it
+NEWMARK_BETA = 0.25
+"""The paper's Newmark beta (average acceleration, gamma = 1/2): unconditionally stable, second order."""
+FOX_GOODWIN_BETA = 1.0 / 12.0
+"""Newmark beta of the Fox-Goodwin scheme (gamma = 1/2): second order with damping, with a far smaller error
+constant on this model (docs/SIMULATOR.md, "Fox-Goodwin"), stable only for Omega_max h < sqrt(6)
+(:func:`gear_env.sim.linear.newmark_step_limit`)."""
+C_BETA = 30  # Newmark beta of the integrator (numerics: GearParams.newmark_beta)
+N_CONSTS = 31  # length of the fixed part; the harmonic tail follows it
 C_TAIL = N_CONSTS  # tail: kappa_n (cos, sin)(phi_kn), n = 1..N_k, then E_n / b0 (cos, sin)(phi_en), n = 1..N_e
 MAX_HARMONICS = 64
 
@@ -142,6 +149,7 @@ BOUNDS: dict[str, tuple[float, float, bool, bool]] = {
     "phi_Tp": (-1e3, 1e3, True, True),
     "phi_Tg": (-1e3, 1e3, True, True),
     "torque_order": (0.0, 1000.0, False, True),
+    "newmark_beta": (FOX_GOODWIN_BETA, NEWMARK_BETA, True, True),
 }
 EXTENSION_DEFAULTS: dict[str, Any] = {
     "T_p1": 0.0,
@@ -151,6 +159,7 @@ EXTENSION_DEFAULTS: dict[str, Any] = {
     "torque_order": 1.0,
     "backlash_law": "paper",
     "mesh_force_direction": "line_of_action",
+    "newmark_beta": NEWMARK_BETA,
 }
 """Fields that :meth:`GearParams.to_dict` leaves out at these values, so that the dict of the
 paper's model is what it was before they existed."""
@@ -233,6 +242,13 @@ class GearParams:
             backlash's own dependence on the centre positions and psi's; :data:`FORCE_DIRECTIONS`). Carried
             by :func:`gear_env.simulate` and :class:`gear_env.GearSimulator`; the other entry points refuse
             ``"gradient"``.
+        newmark_beta: the integrator's Newmark beta (numerics, not physics; gamma = 1/2), in [1/12, 1/4].
+            1/4 (default, :data:`NEWMARK_BETA`): the paper's average acceleration, unconditionally stable.
+            1/12 (:data:`FOX_GOODWIN_BETA`, Fox-Goodwin): the same cost per step and 2-10x less error on
+            period-1 orbits at omega 0.6-2 (docs/SIMULATOR.md, "Fox-Goodwin"), stable for steps below
+            :func:`gear_env.sim.linear.newmark_step_limit`: ``GearSimulator`` refuses fewer steps than
+            :func:`gear_env.sim.linear.min_steps_per_period` (omega) and the environments raise their step count
+            per sub-environment to it at low omega. Not with ``tol``. Left out of :meth:`to_dict` at 1/4.
     """
 
     pressure_angle_deg: float = 20.0
@@ -268,6 +284,7 @@ class GearParams:
     torque_order: float = 1.0
     backlash_law: str = "paper"
     mesh_force_direction: str = "line_of_action"
+    newmark_beta: float = NEWMARK_BETA
     _consts: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -438,6 +455,7 @@ class GearParams:
         c[C_SIN_A0] = math.sin(self.alpha0)
         c[C_COS_A0] = math.cos(self.alpha0)
         c[C_MU] = self.friction
+        c[C_BETA] = self.newmark_beta
         nk = len(self.stiffness_harmonics) if len(self.stiffness_harmonics) > 1 else 0
         ne = len(self.te_harmonics) if len(self.te_harmonics) > 1 else 0
         c[C_NK] = nk

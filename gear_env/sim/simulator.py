@@ -26,7 +26,8 @@ from . import kernels as K
 from .integration import NEWTON_MAX_ITER as NEWTON_MAX_ITER  # re-exported (older imports)
 from .integration import NEWTON_TOL as NEWTON_TOL
 from .integration import TOL_N_START, integrate
-from .params import C_E1, C_PHI_E, GearParams, kernel_code, model_code, refuse_extensions, stack_consts
+from .linear import newmark_step_limit
+from .params import C_E1, C_PHI_E, NEWMARK_BETA, GearParams, kernel_code, model_code, refuse_extensions, stack_consts
 
 SIM_COMPILE_TIME = "15 s on an idle 2-core machine, several times that under load"
 """What the first-use notice says the simulator kernels take to compile (measured: 13 s for both models)."""
@@ -112,6 +113,23 @@ def resolve_steps(steps_per_period: Any, omega: float) -> int:
     if steps_per_period is None:
         return default_steps_per_period(omega)
     return check_steps(steps_per_period)
+
+
+def check_stable_steps(params: GearParams, steps_per_period: int, omega: float, h_limit: float | None = None) -> None:
+    """ValueError if ``steps_per_period`` Newmark steps per mesh period at meshing frequency ``omega`` (the
+    lowest of an interval) exceed the stability limit of ``params.newmark_beta`` (none for the paper's 1/4;
+    :func:`gear_env.sim.linear.newmark_step_limit` for Fox-Goodwin's 1/12). ``h_limit``: that limit, if
+    already computed (natural time)."""
+    h = newmark_step_limit(params) if h_limit is None else h_limit
+    if not math.isfinite(h) or 2.0 * math.pi / (omega * steps_per_period) <= h:
+        return
+    need = math.ceil(2.0 * math.pi / (omega * h))
+    raise ValueError(
+        f"steps_per_period = {steps_per_period} is unstable with GearParams.newmark_beta = "
+        f"{params.newmark_beta:.6g} at omega = {omega:g}: the step 2 pi / (omega N) = "
+        f"{2.0 * math.pi / (omega * steps_per_period):.4g} exceeds the scheme's stable step {h:.4g} (natural time); "
+        f"give steps_per_period >= {need} at this omega, or newmark_beta = {NEWMARK_BETA} (unconditionally stable)"
+    )
 
 
 def default_initial_state(params: GearParams, model: str = "dynamic") -> np.ndarray:
@@ -311,9 +329,16 @@ class GearSimulator:
                 "tol (error control) does not take a torque fluctuation (GearParams.T_p1, T_g1 > 0): "
                 "its periods restart the mesh phase; give steps_per_period instead"
             )
+        if self.tol is not None and self.params.newmark_beta != NEWMARK_BETA:
+            raise ValueError(
+                f"tol (error control) takes only the paper's Newmark beta (GearParams.newmark_beta = {NEWMARK_BETA}), "
+                f"got {self.params.newmark_beta:.6g}; give steps_per_period instead"
+            )
         self.auto_steps = steps_per_period is None
         self.steps_per_period = resolve_steps(steps_per_period, check_omega(omega))
         """Steps per mesh period of the last interval (fixed unless ``auto_steps``)."""
+        self._h_limit = newmark_step_limit(self.params)
+        check_stable_steps(self.params, self.steps_per_period, check_omega(omega), self._h_limit)
         self._consts = K.readonly(np.ascontiguousarray(self.params.consts))
         self.reset(initial_state=initial_state, omega=omega)
 
@@ -367,7 +392,9 @@ class GearSimulator:
                 self._n_tol = int(r.steps_last)
                 self.steps_per_period = 2 * self._n_tol
         else:
-            r = integrate(x, a, self._interval_consts(), self.model_code, w0, w1, n, self._steps(w0, w1))
+            nsp = self._steps(w0, w1)
+            check_stable_steps(self.params, nsp, min(w0, w1), self._h_limit)
+            r = integrate(x, a, self._interval_consts(), self.model_code, w0, w1, n, nsp)
         if r.status != K.OK:
             self._raise(r.status, r.done, w0)
         self.x, self.a = x, a
@@ -384,6 +411,7 @@ class GearSimulator:
         x = self.x.copy()
         a = self.a.copy()
         nsp = 2 * self._n_tol if self.tol is not None else self._steps(w0, w1)
+        check_stable_steps(self.params, nsp, min(w0, w1), self._h_limit)
         r = integrate(x, a, self._interval_consts(), self.model_code, w0, w1, n, nsp, record=True)
         if r.status != K.OK:
             self._raise(r.status, (r.done - 1) // nsp, w0)
@@ -655,6 +683,8 @@ def simulate_batch(
                 for i in range(n)]  # fmt: skip
     nsp = resolve_steps(steps_per_period, float(min(w.min(), w_end.min())))
     per_row = len(ps) == n  # else one shared parameter set
+    for i in range(n):
+        check_stable_steps(ps[i if per_row else 0], nsp, float(min(w[i], w_end[i])))
     C = stack_consts([q.consts for q in (ps if per_row else ps * n)])
     if S is not None:
         X = np.repeat(S, n, axis=0) if len(S) == 1 else S

@@ -75,6 +75,7 @@ from .layout import (
     GEO_SIZE,
     K_A0,
     K_BC,
+    K_BETA,
     K_C_G,
     K_C_P,
     K_COS_A0,

@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import math
 
+from ..params import FOX_GOODWIN_BETA, NEWMARK_BETA  # noqa: F401  (re-exported)
+
 NDOF = 5
 NSTATE = 10
 GAMMA = 0.5
-BETA = 0.25
+BETA = NEWMARK_BETA  # the default of GearParams.newmark_beta; the kernels read beta per step (K_BETA)
 TWO_PI = 2.0 * math.pi
 
 
@@ -93,7 +95,7 @@ RS_SIZE = RS_HC + 7
 
 WORK_SIZE = 80
 
-# The constants of one Newmark step (:func:`kernels.mesh.step_consts`), a tuple of 20 floats that
+# The constants of one Newmark step (:func:`kernels.mesh.step_consts`), a tuple of 21 floats that
 # numba keeps in registers: ``k[K_XIM2]`` is 2 xi_m. The indices are compile-time constants, so a
 # named index costs nothing. Natural time, b0 units.
 (
@@ -117,6 +119,7 @@ WORK_SIZE = 80
     K_MU,  # friction coefficient (0: the paper's model)
     K_COS_PHI_E,  # cos phi_e
     K_SIN_PHI_E,  # sin phi_e
-) = range(20)
-N_K = K_SIN_PHI_E + 1
+    K_BETA,  # Newmark beta (GearParams.newmark_beta; 1/4 = the paper's average acceleration)
+) = range(21)
+N_K = K_BETA + 1
 """Number of step constants (length of :func:`kernels.mesh.step_consts`)."""

@@ -52,6 +52,7 @@ from ..params import (
     C_A0,
     C_ALPHA0,
     C_BC,
+    C_BETA,
     C_COS_A0,
     C_E1,
     C_EPS_G,
@@ -114,7 +115,7 @@ def step_consts(c):
     indexed by the ``K_*`` names of ``kernels.layout`` (``k[K_XIM2]`` = 2 xi_m, ...), in this order.
 
     (1/eps_p, 1/eps_g, pinion and gear bearing damping and stiffness (natural time), the weights
-    per unit mass, 2 xi_m, F_s, E1, A0, R, 1/R, B_c, sin and cos alpha0, mu, cos and sin phi_e).
+    per unit mass, 2 xi_m, F_s, E1, A0, R, 1/R, B_c, sin and cos alpha0, mu, cos and sin phi_e, Newmark beta).
     """
     sgp = c[C_SIG_P]
     sgg = c[C_SIG_G]
@@ -141,6 +142,7 @@ def step_consts(c):
         c[C_MU],
         math.cos(c[C_PHI_E]),
         math.sin(c[C_PHI_E]),
+        c[C_BETA],
     )
 
 

@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 
 from .jit import kernel, kernel_inline, runtime_int
-from .layout import BETA, DIVERGENCE_LIMIT, GAMMA, NDOF, NEWTON_FAILED, NSTATE, OK
+from .layout import DIVERGENCE_LIMIT, GAMMA, K_BETA, NDOF, NEWTON_FAILED, NSTATE, OK
 from .mesh import (
     backlash,
     backlash_branch,
@@ -57,14 +57,16 @@ from .mesh import (
 def step_coeffs(h, k):
     """Newmark coefficients of a step of length h (natural time): (h, beta h^2, gamma h,
     (1/2 - beta) h^2, (1 - gamma) h, inverse diagonal of the Newton matrix for the pinion and the
-    gear bearings). Loop-invariant while omega is constant."""
-    bh2 = BETA * h * h
+    gear bearings). Loop-invariant while omega is constant. beta is ``k[K_BETA]``
+    (``GearParams.newmark_beta``), gamma = 1/2."""
+    beta = k[K_BETA]
+    bh2 = beta * h * h
     gh = GAMMA * h
     c_p, c_g, k_p, k_g = bearing_t(k)  # dr/da = I + gh dr/dv + bh2 dr/dq: its diagonal
     d0 = 1.0 + gh * c_p + bh2 * k_p
     d2 = 1.0 + gh * c_g + bh2 * k_g
     q = 1.0 / (d0 * d2)  # one division for both inverses (recomputed every step of a ramp)
-    return h, bh2, gh, h * h * (0.5 - BETA), h * (1.0 - GAMMA), q * d2, q * d0
+    return h, bh2, gh, h * h * (0.5 - beta), h * (1.0 - GAMMA), q * d2, q * d0
 
 
 @kernel_inline
