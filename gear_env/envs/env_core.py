@@ -246,14 +246,19 @@ class GearSpeedCore:
         """:meth:`_integrate` under a conditionally stable Newmark beta: each row takes ``steps_per_period`` or
         the stable count at the lower omega of its interval, whichever is more; rows of equal counts are
         stepped together (so a row's result does not depend on the others: single and vector env agree)."""
-        cfg = self.config
+        n_fix = self.config.steps_per_period
+        if len(rows) == 1:  # the single env: plain floats
+            h = float(self.h_limit[rows[0]])
+            w_min = min(float(w0[0]), float(w1[0]))
+            need = math.ceil(2.0 * math.pi / (w_min * h)) if math.isfinite(h) else 0
+            return self._integrate_fixed(rows, w0, w1, periods, max(n_fix, need))
         w_low = np.minimum(np.asarray(w0, float), np.asarray(w1, float))
         with np.errstate(divide="ignore"):
             need = np.ceil(2.0 * math.pi / (w_low * self.h_limit[rows]))
-        nsp = np.maximum(cfg.steps_per_period, need).astype(np.int64)
+        if not need.max() > n_fix:  # every row stable at the fixed count: one call
+            return self._integrate_fixed(rows, w0, w1, periods, n_fix)
+        nsp = np.maximum(n_fix, need).astype(np.int64)
         groups = np.unique(nsp)
-        if groups.size == 1:
-            return self._integrate_fixed(rows, w0, w1, periods, int(groups[0]))
         m = len(rows)
         pc = np.zeros((m, periods, K.N_PC))
         st = np.zeros((m, K.N_STATS))
