@@ -107,9 +107,7 @@ def main(argv: list[str] | None = None) -> int:
             cpu[name] += t
     base = cpu["64 steps (default)"]
     print(f"{args.env}: {args.seeds} episodes x {args.steps} steps; error = max |feature - 1024-step feature|")
-    print(
-        "| setting | median error | max error | per step: median | per step: p75 | CPU per step [ms] | CPU vs 64 steps |"
-    )
+    print("| setting | median error | max error | per step: median | per step: p75 | CPU per step [ms] | vs 64 steps |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     for name in SETTINGS:
         e = np.array(err[name])
