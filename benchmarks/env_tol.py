@@ -86,21 +86,24 @@ def main(argv: list[str] | None = None) -> int:
                     help="also time GearSpeedVectorEnv(N), Fox-Goodwin 64 steps against 64 steps")  # fmt: skip
     ap.add_argument("--rounds", type=int, default=5, help="rounds of the vector timing (5)")
     ap.add_argument("--json", metavar="FILE", help="also write a JSON record (benchmarks/make_tables.py reads it)")
+    ap.add_argument("--settings", nargs="+", metavar="NAME", choices=list(SETTINGS), default=list(SETTINGS),
+                    help="only these settings (the 64-step default always runs: ratios are against it)")  # fmt: skip
     args = ap.parse_args(argv)
+    settings = {k: v for k, v in SETTINGS.items() if k in args.settings or k == "64 steps (default)"}
     from bench_record import Record, check_json_target
 
     check_json_target(args.json)
     rec = Record("env_tol", argv)
     rng = np.random.default_rng(0)
     actions = np.clip(np.cumsum(rng.normal(0, 0.15, args.steps)) * 0.5 + 0.2, -1, 1)
-    for kw in SETTINGS.values():  # compile and warm every path first
+    for kw in settings.values():  # compile and warm every path first
         episode(args.env, 0, actions[:2], **kw)
-    err: dict[str, list[float]] = {k: [] for k in SETTINGS}
-    per_step: dict[str, list[np.ndarray]] = {k: [] for k in SETTINGS}  # every step's largest feature error
-    cpu: dict[str, float] = dict.fromkeys(SETTINGS, 0.0)
+    err: dict[str, list[float]] = {k: [] for k in settings}
+    per_step: dict[str, list[np.ndarray]] = {k: [] for k in settings}  # every step's largest feature error
+    cpu: dict[str, float] = dict.fromkeys(settings, 0.0)
     for seed in range(args.seeds):
         ref, _ = episode(args.env, 1000 + seed, actions, steps_per_period=1024)
-        for name, kw in SETTINGS.items():
+        for name, kw in settings.items():
             o, t = episode(args.env, 1000 + seed, actions, **kw)
             err[name].append(float(np.max(np.abs(o[:, 2:5] - ref[:, 2:5]))))
             per_step[name].append(np.max(np.abs(o[1:, 2:5] - ref[1:, 2:5]), axis=1))
@@ -109,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.env}: {args.seeds} episodes x {args.steps} steps; error = max |feature - 1024-step feature|")
     print("| setting | median error | max error | per step: median | per step: p75 | CPU per step [ms] | vs 64 steps |")
     print("|---|---:|---:|---:|---:|---:|---:|")
-    for name in SETTINGS:
+    for name in settings:
         e = np.array(err[name])
         ms = 1e3 * cpu[name] / (args.seeds * args.steps)
         ps = np.concatenate(per_step[name])

@@ -24,8 +24,8 @@ import numpy as np
 from .._numba_cache import announce_compile
 from ..sim import kernels as K
 from ..sim.integration import TOL_N_START, integrate
-from ..sim.linear import newmark_step_limit
-from ..sim.params import C_FS, GearParams, model_code, refuse_extensions
+from ..sim.linear import stability_frequency, stable_betas
+from ..sim.params import C_BETA, C_FS, GearParams, model_code, refuse_extensions
 from . import env_kernels as EK
 from . import env_terms as ET
 from . import force_level as FL
@@ -197,8 +197,10 @@ class GearSpeedCore:
         self.n_tol = np.full(n, TOL_N_START, np.int64)  # with `tol`: each row's coarse step count N
         # each row's stable Newmark step (natural time; inf for the paper's beta 1/4): steps_per_period is raised
         # to it per row and interval (Fox-Goodwin at low omega), so a row's steps depend only on its own omega
-        self.h_limit = np.full(n, newmark_step_limit(cfg.params))
-        self.conditional = bool(np.isfinite(self.h_limit).any())
+        self.beta = np.full(n, float(cfg.params.newmark_beta))  # each row's own Newmark beta
+        self.w_stab = np.full(n, stability_frequency(cfg.params))  # Omega_max / margin, 0: unconditionally stable
+        self.w_floor = np.zeros(n)  # below this omega a row's beta is unstable at steps_per_period
+        self._set_floor(slice(None))
         self._pc_buf = np.zeros((1, cfg.periods_per_step, K.N_PC))
         self._st_buf = np.zeros((1, K.N_STATS))
         self._zeros = np.zeros(n)
@@ -242,34 +244,40 @@ class GearSpeedCore:
             return self._integrate_stable(rows, w0, w1, periods)
         return self._integrate_fixed(rows, w0, w1, periods, cfg.steps_per_period)
 
+    def _set_floor(self, r: int | slice) -> None:
+        """``w_floor`` of rows ``r``: the omega below which :func:`~gear_env.sim.linear.stable_betas` moves their
+        beta at ``steps_per_period`` (0 for the paper's beta), and the flag that any row may need it."""
+        b = np.minimum(self.beta[r], 0.25 - 1e-300)
+        self.w_floor[r] = np.where(
+            self.w_stab[r] > 0,
+            (2.0 * math.pi / self.config.steps_per_period) * self.w_stab[r] * np.sqrt((0.25 - b) / (1.0 - 1e-9)),
+            0.0,
+        )
+        self.conditional = bool((self.w_floor > 0).any())
+
     def _integrate_stable(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int):
-        """:meth:`_integrate` under a conditionally stable Newmark beta: each row takes ``steps_per_period`` or
-        the stable count at the lower omega of its interval, whichever is more; rows of equal counts are
-        stepped together (so a row's result does not depend on the others: single and vector env agree)."""
-        n_fix = self.config.steps_per_period
+        """:meth:`_integrate` under a conditionally stable Newmark beta (``params.newmark_beta`` < 1/4): every
+        row keeps ``steps_per_period``; a row whose interval reaches below its ``w_floor`` (where that beta is
+        unstable at this step count) takes, for this interval, the beta closest to its own that is stable there
+        (:func:`gear_env.sim.linear.stable_betas`, towards the paper's 1/4). The cost per step stays that of
+        the fixed count, all rows are stepped together, and a row's beta depends only on its own interval (so
+        single and vector env agree bit for bit)."""
+        nsp = self.config.steps_per_period
         if len(rows) == 1:  # the single env: plain floats
-            h = float(self.h_limit[rows[0]])
-            w_min = min(float(w0[0]), float(w1[0]))
-            need = math.ceil(2.0 * math.pi / (w_min * h)) if math.isfinite(h) else 0
-            return self._integrate_fixed(rows, w0, w1, periods, max(n_fix, need))
-        w_low = np.minimum(np.asarray(w0, float), np.asarray(w1, float))
-        with np.errstate(divide="ignore"):
-            need = np.ceil(2.0 * math.pi / (w_low * self.h_limit[rows]))
-        if not need.max() > n_fix:  # every row stable at the fixed count: one call
-            return self._integrate_fixed(rows, w0, w1, periods, n_fix)
-        nsp = np.maximum(n_fix, need).astype(np.int64)
-        groups = np.unique(nsp)
-        m = len(rows)
-        pc = np.zeros((m, periods, K.N_PC))
-        st = np.zeros((m, K.N_STATS))
-        ok = np.zeros(m, bool)
-        elapsed = np.zeros(m)
-        for n_g in groups:
-            sel = np.flatnonzero(nsp == n_g)
-            pc[sel], st[sel], ok[sel], elapsed[sel] = self._integrate_fixed(
-                rows[sel], np.asarray(w0)[sel], np.asarray(w1)[sel], periods, int(n_g)
-            )
-        return pc, st, ok, elapsed
+            if min(float(w0[0]), float(w1[0])) >= self.w_floor[rows[0]]:
+                return self._integrate_fixed(rows, w0, w1, periods, nsp)
+            moved = np.ones(1, bool)
+        else:
+            moved = np.minimum(w0, w1) < self.w_floor[rows]
+            if not moved.any():
+                return self._integrate_fixed(rows, w0, w1, periods, nsp)
+        mr = rows[moved]
+        w_low = np.minimum(np.asarray(w0, float)[moved], np.asarray(w1, float)[moved])
+        self.C[mr, C_BETA] = stable_betas(self.beta[mr], self.w_stab[mr], w_low, nsp)
+        try:
+            return self._integrate_fixed(rows, w0, w1, periods, nsp)
+        finally:
+            self.C[mr, C_BETA] = self.beta[mr]
 
     def _integrate_fixed(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int, nsp: int):
         """:meth:`_integrate` with ``nsp`` fixed steps per mesh period for every row."""
@@ -538,8 +546,9 @@ class GearSpeedCore:
                 f"{self.C.shape[1]}: every plant of a family must have as many excitation harmonics as the base"
             )
         self.C[r] = p.consts
-        self.h_limit[r] = newmark_step_limit(p)
-        self.conditional = bool(np.isfinite(self.h_limit).any())
+        self.beta[r] = p.newmark_beta
+        self.w_stab[r] = stability_frequency(p)
+        self._set_floor(r)
         self.fs[r] = self.C[r, C_FS]
         x0 = np.zeros(K.NSTATE)
         K.static_equilibrium(self._C_ro[r], self.code, 0.0, x0)

@@ -496,8 +496,9 @@ SETTINGS: tuple[Setting, ...] = (
             "static mesh force >= 1e-6 N (features are relative to it)", shown="Table 1"),
     Setting("model", "dynamic", choice(*BACKLASH_MODELS), '"dynamic", "constant"', "backlash model"),
     Setting("steps_per_period", 64, integer(16, 1024), "[16, 1024]",
-            "Newmark steps per mesh period (with `params.newmark_beta` < 1/4, raised per sub-environment and step "
-            "to the scheme's stable count where omega is low: `gear_env.sim.linear.min_steps_per_period`)"),
+            "Newmark steps per mesh period (with `params.newmark_beta` < 1/4, kept: where omega is too low for that "
+            "beta at this count, the sub-environment takes the nearest stable beta for that step, "
+            "`gear_env.sim.linear.stable_beta`)"),
     Setting("tol", None, _tol, "None, [1e-8, 0.1]",
             "error per mesh period (b0 units) instead of `steps_per_period`: every mesh period integrated with "
             "contact changes located and N, 2N steps Richardson-extrapolated, N chosen per period "

@@ -27,6 +27,7 @@ import numpy as np
 
 from . import batch_kernels as BK
 from . import kernels as K
+from .params import N_CONSTS
 
 NEWTON_MAX_ITER = 12
 """Newton iterations per Newmark step before the step is split."""
@@ -58,6 +59,23 @@ class IntervalRun(NamedTuple):
     record: Any = None
     steps_last: Any = None
     """With ``err_tol``: the coarse run's steps per mesh period chosen for the last period."""
+
+
+def _check_buffers(x, a, c, periods, poincare, stats) -> None:
+    """Shapes that the kernels rely on (they index without bounds checks): a mismatch would write outside the
+    arrays. A few attribute reads; raises ``ValueError`` naming the argument."""
+    n = None if x.ndim == 1 else x.shape[0]
+    lead = () if n is None else (n,)
+    want = {"x": (x, lead + (K.NSTATE,)), "a": (a, lead + (K.NDOF,))}
+    if poincare is not None:
+        want["poincare"] = (poincare, lead + (periods, K.N_PC))
+    if stats is not None:
+        want["stats"] = (stats, lead + (K.N_STATS,))
+    for name, (arr, shape) in want.items():
+        if arr.shape != shape:
+            raise ValueError(f"integrate: {name} must have shape {shape}, got {arr.shape}")
+    if c.shape[-1] < N_CONSTS or (n is not None and c.ndim == 2 and c.shape[0] != n):
+        raise ValueError(f"integrate: consts must be GearParams.consts (one row per system), got shape {c.shape}")
 
 
 def integrate(
@@ -110,6 +128,7 @@ def integrate(
         :class:`IntervalRun`.
     """
     c = K.readonly(consts)  # one compiled signature whoever calls
+    _check_buffers(x, a, c, periods, poincare, stats)  # the kernels index them unchecked: no write out of bounds
     if x.ndim == 1:
         if record:
             out = np.empty((periods * steps_per_period + 1, K.N_REC))

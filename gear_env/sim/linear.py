@@ -109,6 +109,42 @@ def newmark_step_limit(params: GearParams | None = None) -> float:
     return STABILITY_MARGIN / (math.sqrt(0.25 - p.newmark_beta) * math.sqrt(w2))
 
 
+def stable_beta(params: GearParams | None, omega: float, steps_per_period: int) -> float:
+    """The Newmark beta closest to ``params.newmark_beta`` that is stable with ``steps_per_period`` steps per
+    mesh period at meshing frequency ``omega`` (units of omega_n): ``params.newmark_beta`` itself wherever
+    that is stable (:func:`newmark_step_limit`), else the smallest larger beta (up to 1/4) whose limit,
+    with the same :data:`STABILITY_MARGIN`, admits the step h = 2 pi / (omega N):
+    beta = 1/4 - (STABILITY_MARGIN / (Omega_max h))^2. The environments use it to keep their step count
+    (and cost) where a conditionally stable beta would need more steps at low omega; the scheme then moves
+    from Fox-Goodwin towards the paper's average acceleration (error between the two; docs/SIMULATOR.md).
+    """
+    p = params or GearParams()
+    return float(stable_betas(p.newmark_beta, stability_frequency(p), np.array([omega], float), steps_per_period)[0])
+
+
+def stability_frequency(params: GearParams | None = None) -> float:
+    """Omega_max / :data:`STABILITY_MARGIN` (units of omega_n) for the stability limit of a Newmark beta < 1/4:
+    the step h is stable with margin for beta >= 1/4 - 1 / (this h)^2. 0.0 for the paper's beta (no limit)."""
+    p = params or GearParams()
+    h = newmark_step_limit(p)
+    if not math.isfinite(h):
+        return 0.0
+    return 1.0 / (math.sqrt(0.25 - p.newmark_beta) * h)
+
+
+def stable_betas(
+    beta: np.ndarray | float, w_stab: np.ndarray | float, omega: np.ndarray, steps_per_period: int
+) -> np.ndarray:
+    """Vectorised :func:`stable_beta` for rows of (beta, :func:`stability_frequency`, omega); the same
+    floating-point operations per row whatever the number of rows (so one row's result does not depend on
+    the others)."""
+    h = (2.0 * math.pi / steps_per_period) / np.asarray(omega, float)
+    wh = np.asarray(w_stab, float) * h
+    with np.errstate(divide="ignore"):
+        floor = 0.25 - (1.0 - 1e-9) / (wh * wh)  # 1e-9: the step then lies inside the limit after rounding
+    return np.minimum(np.maximum(np.asarray(beta, float), floor), 0.25)
+
+
 def min_steps_per_period(params: GearParams | None, omega: float) -> int:
     """Fewest Newmark steps per mesh period that are stable at meshing frequency ``omega`` (units of
     omega_n) for ``params.newmark_beta`` (:func:`newmark_step_limit`): 1 for the paper's beta = 1/4."""

@@ -247,8 +247,9 @@ class GearParams:
             1/12 (:data:`FOX_GOODWIN_BETA`, Fox-Goodwin): the same cost per step and 2-10x less error on
             period-1 orbits at omega 0.6-2 (docs/SIMULATOR.md, "Fox-Goodwin"), stable for steps below
             :func:`gear_env.sim.linear.newmark_step_limit`: ``GearSimulator`` refuses fewer steps than
-            :func:`gear_env.sim.linear.min_steps_per_period` (omega) and the environments raise their step count
-            per sub-environment to it at low omega. Not with ``tol``. Left out of :meth:`to_dict` at 1/4.
+            :func:`gear_env.sim.linear.min_steps_per_period` (omega); the environments keep their step count and
+            take, per sub-environment and step where omega is that low, the nearest stable beta
+            (:func:`gear_env.sim.linear.stable_beta`). Not with ``tol``. Left out of :meth:`to_dict` at 1/4.
     """
 
     pressure_angle_deg: float = 20.0
