@@ -14,7 +14,9 @@ summed time of fixed 192 over the summed time of the tol mode (> 1: tol mode fas
     python benchmarks/bench_tolerance.py --tols 3e-3 --fox-goodwin 64 96 --fixed 64 96   # the schemes side by side
 
 ``--fox-goodwin N ...`` adds fixed-step modes with Fox-Goodwin's Newmark beta 1/12
-(``GearParams(newmark_beta=1/12)``), ``--fixed N ...`` fixed-step modes of the paper's beta 1/4 at other step counts.
+(``GearParams(newmark_beta=1/12)``), ``--fixed N ...`` fixed-step modes of the paper's beta 1/4 at other step counts,
+``--beta BETA:N ...`` fixed-step modes of any beta in [1/12, 1/4]. ``--omega-step 0.01`` doubles the orbits: the
+grid of the default step plus the omegas halfway between (a set nobody chose a step count on).
 
 ``--strict-newton`` adds every tol mode a second time with the Newton iteration of the fixed-step drivers
 (``kernels.TOL_DQ_SCALE = 0``: a dynamic-model update is final only below ``DQ_LINEAR`` = 1e-4 b0), so the
@@ -52,7 +54,26 @@ def main(argv: list[str] | None = None) -> int:
                     help="also time fixed N steps per period with Newmark beta 1/12 (Fox-Goodwin)")  # fmt: skip
     ap.add_argument("--fixed", type=int, nargs="*", default=[], metavar="N",
                     help="also time fixed N steps per period with the paper's beta 1/4")  # fmt: skip
+    ap.add_argument("--beta", nargs="*", default=[], metavar="BETA:N",
+                    help="also time fixed N steps per period with Newmark beta BETA (1/12-1/4): 0.1:88")  # fmt: skip
     args = ap.parse_args(argv)
+    dq_default = float(K.TOL_DQ_SCALE)
+    paper, fg = GearParams(), GearParams(newmark_beta=FOX_GOODWIN_BETA)
+    # (name, tol, steps per period, parameters)
+    modes = [("fixed 192", None, 192, paper)] + [(f"tol {t:g}", t, None, paper) for t in args.tols]
+    if args.strict_newton:
+        modes += [(f"tol {t:g} strict", t, None, paper) for t in args.tols]
+    modes += [(f"fixed {n}", None, n, paper) for n in args.fixed]
+    modes += [(f"fox-goodwin {n}", None, n, fg) for n in args.fox_goodwin]
+    for spec in args.beta:
+        b, _, n = spec.partition(":")
+        try:
+            par_b, n_b = GearParams(newmark_beta=float(b)), int(n)
+        except ValueError as exc:
+            msg = f"--beta {spec!r}: need BETA:N with BETA in [1/12, 1/4] and N an integer ({exc})"
+            raise SystemExit(msg) from None
+        modes.append((f"beta {float(b):.4g} {n_b}", None, n_b, par_b))
+
     omegas = np.round(np.arange(0.3, 3.0 + 1e-9, args.omega_step), 6)
     if args.speed_only:
         omegas = np.array([0.7, 1.0, 1.3, 1.5, 2.6, 2.9])
@@ -68,14 +89,6 @@ def main(argv: list[str] | None = None) -> int:
             ref = reference_poincare(float(w), model, None, 0, 10, initial_state=x0)
             if np.max(np.abs(ref.states[-1] - ref.states[-2])) <= 1e-5 * (1 + np.max(np.abs(ref.states[-1]))):
                 cases.append((model, float(w), x0, ref.states))
-    dq_default = float(K.TOL_DQ_SCALE)
-    paper, fg = GearParams(), GearParams(newmark_beta=FOX_GOODWIN_BETA)
-    # (name, tol, steps per period, parameters)
-    modes = [("fixed 192", None, 192, paper)] + [(f"tol {t:g}", t, None, paper) for t in args.tols]
-    if args.strict_newton:
-        modes += [(f"tol {t:g} strict", t, None, paper) for t in args.tols]
-    modes += [(f"fixed {n}", None, n, paper) for n in args.fixed]
-    modes += [(f"fox-goodwin {n}", None, n, fg) for n in args.fox_goodwin]
 
     def newton_rule(name: str) -> None:
         K.TOL_DQ_SCALE = 0.0 if name.endswith("strict") else dq_default  # read by integration.integrate

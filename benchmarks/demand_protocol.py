@@ -2,7 +2,7 @@
 
 Run:  python benchmarks/demand_protocol.py --set test [--policy SPEC ...] [--runs RUN_DIR ...]
                                           [--env GearSpeedDemandHard-v0] [--reference pretrained]
-                                          [--cache DIR] [--markdown PATH] [--json PATH]
+                                          [--cache DIR] [--markdown PATH] [--json PATH] [--config CONFIG.json]
       python benchmarks/demand_protocol.py --set validation --runs runs/demand_s0 runs/demand_s1 ... --select
       python benchmarks/demand_protocol.py --calibrate --set seeds:0-119   (the scripts' sensor map, training seeds)
 
@@ -17,12 +17,15 @@ against ``--reference`` (default: the shipped policy) with its CI. ``--runs`` ad
 the runs the IQM of the per-episode gap scores with its
 95 % stratified-bootstrap CI (rliable). ``--select`` prints the run whose mean validation return is best
 (the shipped run's rule). ``--cache DIR`` keeps each (policy, episode) result in DIR/<set>/<policy>.json, so
-baselines are rolled out once (a changed policy needs a fresh cache file: delete it).
+baselines are rolled out once (a changed policy needs a fresh cache file: delete it). ``--config`` changes the
+task's settings (for instance the integration scheme); its results are cached apart from the task's, and
+``--against-task`` adds the paired per-episode change of every policy against the task's own settings.
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import re
 import sys
@@ -194,6 +197,32 @@ def fmt(m: float, lo: float, hi: float, pct: bool = False) -> str:
     return f"{k * m:.2f}{u} [{k * lo:.2f}, {k * hi:.2f}]" if not pct else f"{k * m:.1f}{u} [{k * lo:.1f}, {k * hi:.1f}]"
 
 
+def change_table(base: dict[str, list[dict]], changed: dict[str, list[dict]]) -> tuple[str, dict]:
+    """Markdown table (and its numbers) of each policy's return and gap share under the task's settings
+    (``base``) and under other settings (``changed``), with the paired per-episode change and its 95 % CI."""
+    from agents.protocol import gap_closed, paired_diff
+
+    R0 = {k: np.array([e["return"] for e in v]) for k, v in base.items()}
+    R1 = {k: np.array([e["return"] for e in v]) for k, v in changed.items()}
+    lines = [
+        "| policy | return, task's settings | return, --config | paired change [95 % CI] | gap closed, task's "
+        "settings | gap closed, --config |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    nums = {}
+    for name in changed:
+        g0 = gap_closed(R0[name], R0["fixed-best"], R0["oracle"])[0]
+        g1 = gap_closed(R1[name], R1["fixed-best"], R1["oracle"])[0]
+        d = paired_diff(R1[name], R0[name])
+        lines.append(
+            f"| {name} | {np.mean(R0[name]):.2f} | {np.mean(R1[name]):.2f} | {fmt(*d)} | {100 * g0:.1f} % | "
+            f"{100 * g1:.1f} % |"
+        )
+        nums[name] = {"return_task": float(np.mean(R0[name])), "return_config": float(np.mean(R1[name])),
+                      "paired_change": d, "gap_closed_task": g0, "gap_closed_config": g1}  # fmt: skip
+    return "\n".join(lines), nums
+
+
 def table(results: dict[str, list[dict]], reference: str | None) -> tuple[str, dict]:
     """Markdown table (and its numbers) of every policy against fixed-best, the oracle and ``reference``."""
     from agents.protocol import gap_closed, mean_ci, paired_diff
@@ -238,12 +267,28 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument(
         "--calibrate", action="store_true", help="print the scripts' sensor map from the oracle on --set (train:0-119)"
     )
+    ap.add_argument(
+        "--config",
+        metavar="CONFIG.json",
+        help="JSON object of environment settings over the task's (as gear-env evaluate --config), e.g. "
+        '{"params": {"newmark_beta": 0.08333333333333333}} for the Fox-Goodwin scheme',
+    )
+    ap.add_argument(
+        "--against-task",
+        action="store_true",
+        help="with --config: also run every policy under the task's own settings and add a table of the paired "
+        "per-episode change the settings make",
+    )
     ap.add_argument("--markdown", metavar="PATH")
     ap.add_argument("--json", metavar="PATH")
     args = ap.parse_args(argv)
+    if args.against_task and not args.config:
+        ap.error("--against-task compares --config's settings with the task's: give --config")
     from gear_env.io import hold_outputs
 
-    with hold_outputs({"--markdown": args.markdown, "--json": args.json}):  # aliases refused, outputs locked
+    with hold_outputs(
+        {"--markdown": args.markdown, "--json": args.json}, inputs={"--config": args.config}
+    ):  # aliases refused, outputs locked
         return _main(args)
 
 
@@ -254,12 +299,22 @@ def _main(args: argparse.Namespace) -> int:
     from gear_env.envs.env_config import task_config
     from gear_env.io import atomic_write_text
 
+    settings = None
+    if args.config:
+        from gear_env.io import read_json
+
+        settings = read_json(args.config, "--config", max_bytes=1024 * 1024)
+        if not isinstance(settings, dict):
+            raise ValueError(f"--config {args.config!r} must hold a JSON object of settings")
+    cfg = task_config(env_id, settings)  # validated before any work
     if args.calibrate:
-        print(calibrate(task_config(env_id), parse_seed_set(args.set), env_id))
+        print(calibrate(cfg, parse_seed_set(args.set), env_id))
         return 0
     seeds = parse_seed_set(args.set)
     label = args.set.replace(":", "_") + ("" if env_id == DEMAND_TASKS[0] else f"_{env_id}")
-    cfg = task_config(env_id)
+    if settings:  # results under other settings never mix with the task's in the cache
+        digest = hashlib.sha256(json.dumps(cfg.to_dict(), sort_keys=True).encode()).hexdigest()[:12]
+        label += f"_config-{digest}"
     cache = Path(args.cache) if args.cache else None
     specs = list(dict.fromkeys(["oracle", "fixed-best", *(args.policy or BASELINES[2:])]))
     runs = [str(Path(r) / "best_model.zip") if Path(r).is_dir() else r for r in args.runs]
@@ -269,6 +324,12 @@ def _main(args: argparse.Namespace) -> int:
     ref = args.reference if args.reference in results else None
     md, nums = table(results, ref)
     out: dict = {"set": args.set, "seeds": [seeds.start, seeds.stop - 1], "policies": nums}
+    if args.against_task:
+        base_label = args.set.replace(":", "_") + ("" if env_id == DEMAND_TASKS[0] else f"_{env_id}")
+        base_cfg = task_config(env_id)
+        base = {s: rollout(s, base_cfg, seeds, cache, base_label, env_id) for s in results}
+        md_c, out["change_vs_task"] = change_table(base, results)
+        md += f"\n\nThe same episodes under the task's own settings, and the paired change --config makes:\n\n{md_c}"
     if runs:
         F = [e["return"] for e in results["fixed-best"]]
         O = [e["return"] for e in results["oracle"]]

@@ -186,6 +186,64 @@ def test_protocol_table_pairs_every_policy_with_the_reference():
         parse_seed_set("everything")
 
 
+def test_change_table_pairs_each_policy_with_itself_under_the_task_settings():
+    """demand_protocol --against-task: the paired change is the per-episode difference of the same policy,
+    and the gap shares are each taken against their own settings' fixed-best and oracle."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from demand_protocol import change_table
+
+    base = np.random.default_rng(1).normal(10, 8, 25)
+
+    def rows(offset):
+        return [{"return": b + offset} for b in base]
+
+    md, nums = change_table(
+        {"oracle": rows(3.0), "fixed-best": rows(0.0), "mine": rows(1.5)},
+        {"oracle": rows(3.2), "fixed-best": rows(0.2), "mine": rows(2.6)},
+    )
+    assert nums["mine"]["paired_change"] == pytest.approx((1.1, 1.1, 1.1))
+    assert nums["oracle"]["paired_change"][0] == pytest.approx(0.2)
+    assert nums["mine"]["gap_closed_task"] == pytest.approx(0.5)
+    assert nums["mine"]["gap_closed_config"] == pytest.approx(0.8)
+    assert "| mine | " in md and "paired change" in md
+
+
+def test_demand_protocol_config_is_checked_before_any_work(tmp_path, capsys):
+    """--config: a bad setting is refused naming it, before any episode; --against-task needs --config."""
+    import json
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from demand_protocol import main
+
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"params": {"newmark_beta": 0.5}}))
+    with pytest.raises(ValueError, match="newmark_beta"):
+        main(["--set", "seeds:800000-800001", "--config", str(bad)])
+    unknown = tmp_path / "unknown.json"
+    unknown.write_text(json.dumps({"steps_per_periodd": 64}))
+    with pytest.raises(ValueError, match="steps_per_periodd"):
+        main(["--set", "seeds:800000-800001", "--config", str(unknown)])
+    with pytest.raises(SystemExit):
+        main(["--set", "seeds:800000-800001", "--against-task"])
+    assert "--against-task compares" in capsys.readouterr().err
+    # results under other settings are cached apart from the task's, and --against-task adds the change table
+    same = tmp_path / "same.json"
+    same.write_text(json.dumps({"w_rate": 0.5}))
+    cache = tmp_path / "cache"
+    argv = ["--set", "seeds:800000-800001", "--policy", "sensor-servo", "--reference", "sensor-servo", "--cache"]
+    assert main([*argv, str(cache), "--config", str(same), "--against-task"]) == 0
+    out = capsys.readouterr().out
+    assert "paired change" in out and "| sensor-servo |" in out
+    folders = sorted(p.name for p in cache.iterdir())
+    assert folders[0] == "seeds_800000-800001" and folders[1].startswith("seeds_800000-800001_config-")
+    assert len(folders) == 2
+
+
 @pytest.mark.slow
 def test_distillation_recipe_learns_on_validation_episodes(tmp_path, demand_cfg):
     """The distillation recipe of GearSpeedDemand-v0 (``train --distill`` of a speed-limit student, ppo.yml's
