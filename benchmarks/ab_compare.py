@@ -6,6 +6,7 @@ same one core. The workloads are those of the three benchmarks, called from thei
 (``bench_simulator.throughput``, ``bench_env.bench_single / bench_vector / bench_kernel``):
 
 * ``sim-dynamic``, ``sim-constant``: ``GearSimulator.advance`` mesh periods/s (omega 1.2, N 192);
+* ``sim-short``: ``GearSimulator.advance(1)`` calls/s (constant model, omega 1.2, N 192);
 * ``lanes-64``, ``scalar-8``: the SIMD lanes kernel at 64 systems, the scalar batch kernel at 8
   (the default control step, env-steps/s), as ``bench_batch_kernels.py`` times them;
 * ``env-single``, ``env-vec-8``, ``env-vec-64``: the environments, env-steps/s.
@@ -33,7 +34,16 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 
-WORKLOADS = ("sim-dynamic", "sim-constant", "lanes-64", "scalar-8", "env-single", "env-vec-8", "env-vec-64")
+WORKLOADS = (
+    "sim-dynamic",
+    "sim-constant",
+    "sim-short",
+    "lanes-64",
+    "scalar-8",
+    "env-single",
+    "env-vec-8",
+    "env-vec-64",
+)
 
 _CHILD = r"""
 import json, sys, time
@@ -46,6 +56,8 @@ only = {only!r}
 
 def run(name, warm):
     t = 0.05 if warm else secs
+    if name == "sim-short":
+        return S.throughput_short("constant", 1.2, 192, 200 if warm else 2000, repeats=1 if warm else 5)
     if name.startswith("sim-"):
         return S.throughput(name[4:], 1.2, 10 if warm else 60, 192, repeats=1 if warm else 5)[1]
     if name == "lanes-64":

@@ -83,6 +83,22 @@ def throughput(model: str, omega: float, periods: int, n_steps: int, repeats: in
     return periods / best_w, periods / best_c
 
 
+def throughput_short(model: str, omega: float, n_steps: int, calls: int = 2000, repeats: int = 5) -> float:
+    """Mesh periods per CPU second of ``GearSimulator.advance(1)`` called ``calls`` times (a caller that sets
+    omega every period: the per-call cost shows), best of ``repeats``."""
+    from gear_env import GearSimulator
+
+    sim = GearSimulator(model=model, omega=omega, steps_per_period=n_steps)
+    sim.advance(50)
+    best = np.inf
+    for _ in range(repeats):
+        c = time.process_time()
+        for _ in range(calls):
+            sim.advance(1)
+        best = min(best, time.process_time() - c)
+    return calls / best
+
+
 def throughput_batch(model: str, omegas, periods: int, n_steps: int, repeats: int = 5) -> float:
     """Mesh periods per second (all systems together, CPU time) of ``simulate_batch``: one system
     per omega stepped together with SIMD; best of ``repeats``."""

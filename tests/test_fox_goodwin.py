@@ -267,3 +267,27 @@ def test_integrate_refuses_buffers_the_kernels_would_overrun():
         integrate(np.zeros((2, K.NSTATE)), np.zeros((2, K.NDOF)), np.tile(c, (3, 1)), 1, np.ones(2), np.ones(2), 2, 64)
     run = integrate(x, a, c, 1, 1.0, 1.0, 2, 64, poincare=np.zeros((2, K.N_PC)))  # the right shapes run
     assert run.status == K.OK
+
+
+def test_integrate_keeps_the_excitation_table_and_the_same_numbers():
+    """The one-state path of ``integrate`` keeps each (step count, constants) excitation table between calls: its
+    results are those of ``kernels.integrate_stats_lazy`` bit for bit, and other constants (a Fox-Goodwin beta,
+    another kappa) and step counts get a table of their own."""
+    from gear_env.sim import integration as I
+    from gear_env.sim import kernels as K
+
+    sim = GearSimulator(GearParams(), "dynamic", 64, 1.1)
+    sim.advance(50)
+    x0, a0 = sim.x.copy(), sim.a.copy()
+    for params, nsp in ((GearParams(), 64), (GearParams(), 96), (GearParams(newmark_beta=FOX_GOODWIN_BETA), 64),
+                        (GearParams(kappa=0.4), 64)):  # fmt: skip
+        c = K.readonly(params.consts)
+        x, a = x0.copy(), a0.copy()
+        run = I.integrate(x, a, c, 1, 1.1, 1.3, 7, nsp)
+        xl, al = x0.copy(), a0.copy()
+        pl, sl = np.empty((7, K.N_PC)), np.empty(K.N_STATS)
+        ref = K.integrate_stats_lazy(xl, al, 0.0, 1.1, 1.3, 7, nsp, c, 1, pl, sl, I.NEWTON_MAX_ITER, I.NEWTON_TOL, True)
+        assert (run.status, run.done, run.elapsed) == tuple(ref)
+        assert np.array_equal(x, xl) and np.array_equal(a, al) and np.array_equal(run.poincare, pl)
+        assert np.array_equal(run.stats, sl)
+        assert (nsp, c.tobytes()) in I._TABLES
