@@ -291,3 +291,42 @@ def test_integrate_keeps_the_excitation_table_and_the_same_numbers():
         assert np.array_equal(x, xl) and np.array_equal(a, al) and np.array_equal(run.poincare, pl)
         assert np.array_equal(run.stats, sl)
         assert (nsp, c.tobytes()) in I._TABLES
+
+
+def test_automatic_step_count_follows_the_scheme():
+    """``steps_per_period=None`` under Fox-Goodwin: 88 steps per mesh period, the stability floor where that is
+    higher (omega < ~0.11); the paper's scheme keeps 192 (more below 0.27). Every entry point that takes None uses
+    it, a batch of mixed schemes takes the larger count, and the stability map's cache key tells the two apart."""
+    from gear_env.analysis.floquet import PeriodMap
+    from gear_env.analysis.stability import cache_key
+    from gear_env.analysis.sweep import SweepConfig, steps_for
+    from gear_env.sim.simulator import FOX_GOODWIN_STEPS_PER_PERIOD, default_steps_per_period
+
+    assert FOX_GOODWIN_STEPS_PER_PERIOD == 88
+    for w in (0.12, 0.3, 1.0, 2.9):
+        assert default_steps_per_period(w, FG) == 88
+        assert default_steps_per_period(w) == default_steps_per_period(w, GearParams()) == max(192, math.ceil(
+            2 * math.pi / (0.12 * w)))  # fmt: skip
+    for w in (0.05, 0.08, 0.1):
+        assert default_steps_per_period(w, FG) == min_steps_per_period(FG, w) > 88
+    assert GearSimulator(FG, "dynamic", None, 1.2).steps_per_period == 88
+    sim = GearSimulator(FG, "constant", None, 1.0)
+    sim.advance(2, 0.1)  # a ramp down: the count of the interval's lowest omega, stable there
+    assert sim.steps_per_period == min_steps_per_period(FG, 0.1)
+    assert PeriodMap(1.2, "dynamic", FG).steps == 88 and PeriodMap(1.2, "dynamic").steps == 192
+    assert steps_for(1.2, params=FG) == 88 and steps_for(1.2) == 192
+
+    def one(params, n):
+        s = GearSimulator(params, "constant", n, 1.0)
+        return s.advance(2).poincare
+
+    alone = simulate_batch([1.0, 1.2], "constant", periods=2, transient=0, params=FG)
+    assert np.array_equal(alone[0].poincare, one(FG, 88))
+    mixed = simulate_batch([1.0], "constant", periods=2, transient=0, params=[FG, GearParams()])
+    assert np.array_equal(mixed[0].poincare, one(FG, 192))  # the paper row's 192 for both rows
+    grid = np.linspace(0.3, 1.0, 5)
+    assert cache_key(FG, "dynamic", grid, None) != cache_key(FG, "dynamic", grid, 88)
+    kw = dict(model="dynamic", direction="forward", transient=1, periods=2, steps_per_period=None,
+              adaptive_steps=False, lyapunov=False)  # fmt: skip
+    assert "auto_steps" in SweepConfig(params=FG, **kw).fingerprint()
+    assert "auto_steps" not in SweepConfig(params=GearParams(), **kw).fingerprint()  # paper checkpoints resume

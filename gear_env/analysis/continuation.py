@@ -294,7 +294,7 @@ class OrbitMap:
         """Newmark steps per mesh period used at omega (ValueError if a fixed count is unstable there under a
         conditionally stable ``params.newmark_beta``)."""
         if self.fixed_steps is None:
-            return default_steps_per_period(omega)
+            return default_steps_per_period(omega, self.params)
         check_stable_steps(self.params, self.fixed_steps, omega)
         return self.fixed_steps
 

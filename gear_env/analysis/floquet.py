@@ -130,7 +130,7 @@ class PeriodMap:
             raise ValueError(f"params must be a GearParams, got {type(self.params).__name__}")
         refuse_extensions(self.params, "Floquet analysis")
         self.period = check_count(period, "period")
-        self.steps = resolve_steps(steps_per_period, self.omega)
+        self.steps = resolve_steps(steps_per_period, self.omega, self.params)
         check_stable_steps(self.params, self.steps, self.omega)  # GearParams.newmark_beta < 1/4: refused before work
         self._c = np.ascontiguousarray(self.params.consts)
         self._a = np.zeros(K.NDOF)

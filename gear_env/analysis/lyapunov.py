@@ -82,7 +82,7 @@ def largest_lyapunov(
 
     w = check_omega(omega)
     n = check_count(periods, "periods", 2)
-    nsteps = resolve_steps(steps_per_period, w)
+    nsteps = resolve_steps(steps_per_period, w, params)
     check_stable_steps(params if params is not None else GearParams(), nsteps, w)
     tr = check_count(transient, "transient", 0)
     if not (isinstance(d0, (int, float)) and 0.0 < float(d0) < 1e-2 and math.isfinite(d0)):

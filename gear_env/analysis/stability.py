@@ -36,9 +36,8 @@ from ..errors import SimulationDivergedError
 from ..io import atomic_write_text
 from ..sim.params import GearParams, model_code
 from ..sim.simulator import (
-    DEFAULT_STEPS_PER_PERIOD,
-    MAX_NATURAL_STEP,
     GearSimulator,
+    auto_steps_rule,
     check_count,
     check_omega,
     check_stable_steps,
@@ -212,12 +211,9 @@ def cache_dir() -> Path:
     return Path(env) if env else Path.home() / ".cache" / "gear-env"
 
 
-_AUTO_STEPS = f"auto(max({DEFAULT_STEPS_PER_PERIOD}, 2 pi / ({MAX_NATURAL_STEP} omega)))"
-
-
 def cache_key(params: GearParams, model: str, omega: np.ndarray, steps_per_period: int | None) -> str:
     """SHA-256 (hex, 24 characters) of everything the map depends on."""
-    steps: int | str = steps_per_period if steps_per_period is not None else _AUTO_STEPS
+    steps: int | str = steps_per_period if steps_per_period is not None else auto_steps_rule(params)
     blob = json.dumps(
         {
             "v": FORMAT_VERSION,
@@ -261,7 +257,7 @@ def compute_stability_map(
     prev: list[np.ndarray] = []  # last converged orbit states (for the predictor)
     prev_w: list[float] = []
     for i, wi in enumerate(w):
-        steps = resolve_steps(fixed, float(wi))
+        steps = resolve_steps(fixed, float(wi), p)
         guesses: list[np.ndarray | None] = []
         if len(prev) >= 2 and abs(wi - prev_w[-1]) < 3 * abs(w[1] - w[0]) + 1e-12:
             t = (wi - prev_w[-1]) / (prev_w[-1] - prev_w[-2])
@@ -358,7 +354,7 @@ def stability_map(
     steps = None if steps_per_period is None else check_steps(steps_per_period)
     grid = _grid(omega_min, omega_max, points)
     for wi in grid:  # a conditionally stable Newmark beta (GearParams.newmark_beta): refused before any work
-        check_stable_steps(p, resolve_steps(steps, float(wi)), float(wi))
+        check_stable_steps(p, resolve_steps(steps, float(wi), p), float(wi))
     key = cache_key(p, model, grid, steps)
     if cache:
         try:

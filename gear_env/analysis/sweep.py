@@ -27,9 +27,10 @@ from typing import Any
 import numpy as np
 
 from ..sim import kernels as K
-from ..sim.params import GearParams, model_code, refuse_extensions
+from ..sim.params import NEWMARK_BETA, GearParams, model_code, refuse_extensions
 from ..sim.simulator import (
     GearSimulator,
+    auto_steps_rule,
     check_count,
     check_omega,
     check_stable_steps,
@@ -51,16 +52,17 @@ from .results import PointResult, SweepResult, assemble
 DIRECTIONS = ("forward", "reverse")
 
 
-def steps_for(omega: float, base: int | None = None, adaptive: bool = False) -> int:
+def steps_for(omega: float, base: int | None = None, adaptive: bool = False, params: GearParams | None = None) -> int:
     """Newmark steps per mesh period used at ``omega``.
 
     ``base=None`` (the default): the simulator's :func:`~gear_env.sim.simulator.default_steps_per_period`
-    (192, more below omega ~ 0.27). A fixed ``base`` is used as is, or with ``adaptive=True`` as
+    of ``params``' scheme (192, more below omega ~ 0.27; Fox-Goodwin 88). A fixed ``base`` is used as is, or with
+    ``adaptive=True`` as
     ``max(base, ceil(base * 0.5 / omega))`` (the natural-time step ``h = 2 pi / (omega N)`` capped at
     its value at omega = 0.5).
     """
     if base is None:
-        return default_steps_per_period(omega)
+        return default_steps_per_period(omega, params)
     if not adaptive:
         return int(base)
     return int(max(base, math.ceil(base * 0.5 / omega)))
@@ -88,7 +90,7 @@ class SweepConfig:
         refuse_extensions(self.params, "sweep")
 
     def steps(self, omega: float) -> int:
-        return steps_for(omega, self.steps_per_period, self.adaptive_steps)
+        return steps_for(omega, self.steps_per_period, self.adaptive_steps, self.params)
 
     def fingerprint(self) -> dict[str, Any]:
         """JSON-ready identity of the sweep (a checkpoint must match it to be resumed)."""
@@ -106,7 +108,7 @@ class SweepConfig:
             "lyap_tol": self.lyap_tol,
             "max_extend": self.max_extend,
             "d0": self.d0,
-        }
+        } | ({} if self.params.newmark_beta == NEWMARK_BETA else {"auto_steps": auto_steps_rule(self.params)})
 
 
 CHAOS_MARGIN = 10.0
@@ -503,7 +505,7 @@ def _prepare(
     if isinstance(lyap_tol, bool) or not isinstance(lyap_tol, real) or not (math.isfinite(lyap_tol) and lyap_tol > 0):
         raise ValueError(f"lyap_tol must be a finite number > 0, got {lyap_tol!r}")
     for wi in w:  # a conditionally stable Newmark beta (GearParams.newmark_beta): refused before any work
-        check_stable_steps(params, steps_for(float(wi), steps_per_period, bool(adaptive_steps)), float(wi))
+        check_stable_steps(params, steps_for(float(wi), steps_per_period, bool(adaptive_steps), params), float(wi))
     cfg = SweepConfig(
         model, direction, transient, periods, params, steps_per_period, bool(adaptive_steps), bool(lyapunov),
         float(tol), int(max_period), float(lyap_tol), max_extend,

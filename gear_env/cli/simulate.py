@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     from .common import simulate_bytes
 
     params = params_from_args(args)
-    nsp = args.steps_per_period or default_steps_per_period(args.omega)
+    nsp = args.steps_per_period or default_steps_per_period(args.omega, params)
     check_memory(
         simulate_bytes(args.periods, args.transient, nsp),
         f"--periods {args.periods} --transient {args.transient} at {nsp} steps/period",

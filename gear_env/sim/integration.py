@@ -177,10 +177,10 @@ def integrate(
                 float(K.TOL_DQ_SCALE),
             )
             return IntervalRun(status, done, el, poincare, stats, None, n_last)
-        # integrate_stats_lazy with the period's excitation table kept between calls (the same numbers: it is
-        # a function of the step count and the constants only); a third of the cost of a one-period call
+        # the period's excitation table kept between calls (the same numbers: it is a function of the step count
+        # and the constants only); a third of the cost of a one-period call
         tab = _excitation_table(steps_per_period, c)
-        status, done, el = K.integrate_stats_tab.py_func(
+        status, done, el = K.integrate_stats_lazy(
             x, a, 0.0, omega0, omega1, periods, steps_per_period, c, dynamic, poincare, stats, max_iter, tol, True, tab
         )
         return IntervalRun(status, done, el, poincare, stats)

@@ -26,8 +26,18 @@ from . import kernels as K
 from .integration import NEWTON_MAX_ITER as NEWTON_MAX_ITER  # re-exported (older imports)
 from .integration import NEWTON_TOL as NEWTON_TOL
 from .integration import TOL_N_START, integrate
-from .linear import newmark_step_limit
-from .params import C_E1, C_PHI_E, NEWMARK_BETA, GearParams, kernel_code, model_code, refuse_extensions, stack_consts
+from .linear import min_steps_per_period, newmark_step_limit
+from .params import (
+    C_E1,
+    C_PHI_E,
+    FOX_GOODWIN_BETA,
+    NEWMARK_BETA,
+    GearParams,
+    kernel_code,
+    model_code,
+    refuse_extensions,
+    stack_consts,
+)
 
 SIM_COMPILE_TIME = "15 s on an idle 2-core machine, several times that under load"
 """What the first-use notice says the simulator kernels take to compile (measured: 13 s for both models)."""
@@ -38,6 +48,12 @@ chosen by the convergence study in docs/SIMULATOR.md."""
 
 MAX_NATURAL_STEP = 0.12
 """Largest natural-time step 2 pi / (omega N) of the automatic choice (binds below omega ~ 0.27)."""
+
+FOX_GOODWIN_STEPS_PER_PERIOD = 88
+"""Steps per mesh period of the automatic choice under Fox-Goodwin's beta (``GearParams.newmark_beta = 1/12``),
+raised to the stability floor below omega ~ 0.11: on the period-1 orbits of docs/SIMULATOR.md it is at least as
+accurate as the paper's scheme at its automatic 192 (p95 4.6e-4 against 5.8e-4 b0, max 8.8e-4 against 1.0e-3) at
+about twice the mesh periods per second, and below 1e-3 b0 down to omega 0.12."""
 
 
 STATE_NAMES = ("X_p", "Y_p", "X_g", "Y_g", "U", "dX_p", "dY_p", "dX_g", "dY_g", "dU")
@@ -95,23 +111,37 @@ def check_tol(tol: Any) -> float | None:
     return t
 
 
-def default_steps_per_period(omega: float) -> int:
-    """Default Newmark steps per mesh period at meshing frequency omega (Omega/omega_n).
+def default_steps_per_period(omega: float, params: GearParams | None = None) -> int:
+    """Default Newmark steps per mesh period at meshing frequency omega (Omega/omega_n) for ``params``' scheme.
 
+    The paper's scheme (``params`` None or ``newmark_beta`` 1/4; also any other beta):
     ``max(DEFAULT_STEPS_PER_PERIOD, ceil(2 pi / (MAX_NATURAL_STEP omega)))``: 192 steps per mesh
     period, and more below omega ~ 0.27 so that the step in natural time stays <= 0.12 (at low
     omega a mesh period is long compared with the structural modes). With it the Poincare points
     agree with the independent solve_ivp reference to < 1e-3 b0 in every periodic regime of the
-    convergence study (docs/SIMULATOR.md).
+    convergence study (docs/SIMULATOR.md); it is stable for every allowed beta.
+
+    Fox-Goodwin (``newmark_beta`` = ``FOX_GOODWIN_BETA``): ``max(FOX_GOODWIN_STEPS_PER_PERIOD,
+    min_steps_per_period(params, omega))``: 88 steps, more below omega ~ 0.11 where the scheme needs them to be
+    stable.
     """
     w = check_omega(omega)
+    if params is not None and params.newmark_beta == FOX_GOODWIN_BETA:
+        return max(FOX_GOODWIN_STEPS_PER_PERIOD, min_steps_per_period(params, w))
     return max(DEFAULT_STEPS_PER_PERIOD, math.ceil(2.0 * math.pi / (MAX_NATURAL_STEP * w)))
 
 
-def resolve_steps(steps_per_period: Any, omega: float) -> int:
-    """``steps_per_period`` validated, or :func:`default_steps_per_period` (omega) if it is None."""
+def auto_steps_rule(params: GearParams | None = None) -> str:
+    """The rule :func:`default_steps_per_period` applies for ``params`` (a text for cache keys and records)."""
+    if params is not None and params.newmark_beta == FOX_GOODWIN_BETA:
+        return f"auto-fox-goodwin(max({FOX_GOODWIN_STEPS_PER_PERIOD}, stability floor))"
+    return f"auto(max({DEFAULT_STEPS_PER_PERIOD}, 2 pi / ({MAX_NATURAL_STEP} omega)))"
+
+
+def resolve_steps(steps_per_period: Any, omega: float, params: GearParams | None = None) -> int:
+    """``steps_per_period`` validated, or :func:`default_steps_per_period` (omega, params) if it is None."""
     if steps_per_period is None:
-        return default_steps_per_period(omega)
+        return default_steps_per_period(omega, params)
     return check_steps(steps_per_period)
 
 
@@ -335,7 +365,7 @@ class GearSimulator:
                 f"got {self.params.newmark_beta:.6g}; give steps_per_period instead"
             )
         self.auto_steps = steps_per_period is None
-        self.steps_per_period = resolve_steps(steps_per_period, check_omega(omega))
+        self.steps_per_period = resolve_steps(steps_per_period, check_omega(omega), self.params)
         """Steps per mesh period of the last interval (fixed unless ``auto_steps``)."""
         self._h_limit = newmark_step_limit(self.params)
         check_stable_steps(self.params, self.steps_per_period, check_omega(omega), self._h_limit)
@@ -352,7 +382,7 @@ class GearSimulator:
     def _steps(self, w0: float, w1: float) -> int:
         """Steps per mesh period of an interval from w0 to w1 (updates ``steps_per_period``)."""
         if self.auto_steps:
-            self.steps_per_period = default_steps_per_period(min(w0, w1))
+            self.steps_per_period = default_steps_per_period(min(w0, w1), self.params)
         return self.steps_per_period
 
     def reset(self, initial_state: Any = None, omega: float | None = None) -> None:
@@ -681,7 +711,8 @@ def simulate_batch(
         return [_tol_system(ps[i if len(ps) == n else 0], model, float(w[i]), float(w_end[i]),
                             None if S is None else S[i if len(S) == n else 0], err_tol, n_tr, n_rec, i, n)
                 for i in range(n)]  # fmt: skip
-    nsp = resolve_steps(steps_per_period, float(min(w.min(), w_end.min())))
+    w_lo = float(min(w.min(), w_end.min()))
+    nsp = max(resolve_steps(steps_per_period, w_lo, q) for q in ps)  # the automatic count of each row's scheme
     per_row = len(ps) == n  # else one shared parameter set
     for i in range(n):
         check_stable_steps(ps[i if per_row else 0], nsp, float(min(w[i], w_end[i])))

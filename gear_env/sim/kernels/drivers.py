@@ -251,15 +251,19 @@ def integrate_stats_tab(
 
 
 def integrate_stats_lazy(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol,
-                         reset_stats):  # fmt: skip
+                         reset_stats, tab=None):  # fmt: skip
     """:func:`integrate_stats` (same arguments and results, bit for bit) as a Python loop over
     :func:`stats_segment` and :func:`split_resume`: the step-splitting fallback, a second copy of
     the Newmark step (~5 s of first-call compile), is compiled only when a step first needs it.
     The entry of :func:`gear_env.sim.integration.integrate` for one system (simulator, single env).
 
     It runs :func:`integrate_stats_tab`'s own Python source (``py_func``), so the loop is written once:
-    in Python the two kernels it calls are numba dispatchers, each compiled on its first call."""
-    tab = _excitation_table(phi0, n_steps, c)
+    in Python the two kernels it calls are numba dispatchers, each compiled on its first call.
+
+    ``tab``: the excitation table ``_excitation_table(phi0, n_steps, c)`` if the caller keeps it (computed here
+    otherwise; :func:`gear_env.sim.integration.integrate` keeps one per step count and constants)."""
+    if tab is None:
+        tab = _excitation_table(phi0, n_steps, c)
     return integrate_stats_tab.py_func(
         x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab
     )
