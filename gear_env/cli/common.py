@@ -59,7 +59,8 @@ def add_model_options(p: argparse.ArgumentParser, steps: bool = True) -> None:
             "--steps-per-period",
             type=int_range(8, 100_000),
             default=None,
-            help="Newmark steps per mesh period, 8-100000 (default 192, more below omega 0.27)",
+            help="Newmark steps per mesh period, 8-100000 (default 192, more below omega 0.27; with --scheme "
+            "fox-goodwin 88, more below omega 0.11)",
         )
 
 
