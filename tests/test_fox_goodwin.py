@@ -326,6 +326,9 @@ def test_automatic_step_count_follows_the_scheme():
     assert np.array_equal(mixed[0].poincare, one(FG, 192))  # the paper row's 192 for both rows
     grid = np.linspace(0.3, 1.0, 5)
     assert cache_key(FG, "dynamic", grid, None) != cache_key(FG, "dynamic", grid, 88)
+    from gear_env.sim.simulator import auto_steps_rule
+
+    assert auto_steps_rule(GearParams()) == "auto(max(192, 2 pi / (0.12 omega)))"  # the paper's keys: as before
     kw = dict(model="dynamic", direction="forward", transient=1, periods=2, steps_per_period=None,
               adaptive_steps=False, lyapunov=False)  # fmt: skip
     assert "auto_steps" in SweepConfig(params=FG, **kw).fingerprint()
