@@ -254,7 +254,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--env", default=DEMAND_TASKS[0], choices=DEMAND_TASKS, help="the task (default v0)")
     ap.add_argument("--set", default="test", help="seed set: validation, test or seeds:A-B (default test)")
-    ap.add_argument("--policy", action="append", default=[], help="policy spec (default: the baselines)")
+    ap.add_argument(
+        "--policy",
+        action="append",
+        default=[],
+        help="policy spec, repeatable (default: the baselines); oracle and fixed-best always run (the gap's ends)",
+    )
     ap.add_argument(
         "--runs",
         nargs="*",
@@ -319,7 +324,8 @@ def _main(args: argparse.Namespace) -> int:
     specs = list(dict.fromkeys(["oracle", "fixed-best", *(args.policy or BASELINES[2:])]))
     runs = [str(Path(r) / "best_model.zip") if Path(r).is_dir() else r for r in args.runs]
     t0 = time.perf_counter()
-    print(f"{env_id}: {len(specs)} policies + {len(runs)} runs on {args.set} seeds {seeds.start}-{seeds.stop - 1}")
+    where = args.set if args.set.startswith("seeds:") else f"{args.set} seeds {seeds.start}-{seeds.stop - 1}"
+    print(f"{env_id}: {len(specs)} policies + {len(runs)} runs on {where}")
     results = {s: rollout(s, cfg, seeds, cache, label, env_id) for s in dict.fromkeys(specs + runs)}
     ref = args.reference if args.reference in results else None
     md, nums = table(results, ref)

@@ -25,12 +25,12 @@ from gear_env.sim.simulator import default_steps_per_period
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--omegas", type=float, nargs="+", default=[0.3, 0.35, 0.45, 0.6])
-    ap.add_argument("--tols", type=float, nargs="*", default=[3e-3, 1e-3, 3e-4])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0].replace("\n", " "))
+    ap.add_argument("--omegas", type=float, nargs="+", default=[0.3, 0.35, 0.45, 0.6], help="omegas of the orbits")
+    ap.add_argument("--tols", type=float, nargs="*", default=[3e-3, 1e-3, 3e-4], help="tol modes (none: no tol)")
     ap.add_argument("--fox-goodwin", type=int, nargs="*", default=[], metavar="N",
                     help="also N Fox-Goodwin steps per period (beta 1/12; the stability floor if higher)")  # fmt: skip
-    ap.add_argument("--periods", type=int, default=40)
+    ap.add_argument("--periods", type=int, default=40, help="Poincare points compared (40)")
     args = ap.parse_args(argv)
     fg = GearParams(newmark_beta=FOX_GOODWIN_BETA)
     print(f"largest error over {args.periods} Poincare points (b0), and the step count N of each mode")

@@ -333,3 +333,19 @@ def test_automatic_step_count_follows_the_scheme():
               adaptive_steps=False, lyapunov=False)  # fmt: skip
     assert "auto_steps" in SweepConfig(params=FG, **kw).fingerprint()
     assert "auto_steps" not in SweepConfig(params=GearParams(), **kw).fingerprint()  # paper checkpoints resume
+
+
+def test_a_rounded_one_twelfth_is_fox_goodwin_and_the_range_is_named_exactly(capsys):
+    """0.083333 (what a user copies from a printout) is Fox-Goodwin; just outside the range is refused with the
+    bounds written as 1/12 and 1/4, so that the printed bound is not itself refused. The CLI names the scheme."""
+    for b in (0.0833333, 0.083333, FOX_GOODWIN_BETA + 5e-7):
+        p = GearParams(newmark_beta=b)
+        assert p.newmark_beta == FOX_GOODWIN_BETA and p == FG
+    assert GearParams(newmark_beta=0.0834).newmark_beta == 0.0834  # a beta of its own, not snapped
+    for bad in (0.0833, 0.08, 0.2500001):
+        with pytest.raises(ValueError, match=r"newmark_beta must be in \[1/12, 1/4\] \(1/12 = 0.08333333333333333"):
+            GearParams(newmark_beta=bad)
+    from gear_env.cli import main
+
+    assert main(["simulate", "--omega", "1.2", "--periods", "2", "--transient", "2", "--scheme", "fox-goodwin"]) == 0
+    assert "steps/period=88 scheme=fox-goodwin (beta 1/12)" in capsys.readouterr().out

@@ -69,15 +69,15 @@ def add_params_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--kappa", type=float, default=None, help="mesh-stiffness harmonic amplitude (default 0.2)")
     p.add_argument(
         "--params",
-        metavar="JSON",
+        metavar="FILE.json",
         default=None,
-        help="GearParams fields as a JSON object (SI; may hold stiffness_harmonics, te_harmonics)",
+        help="a JSON file holding an object of GearParams fields (SI; may hold stiffness_harmonics, te_harmonics)",
     )
     p.add_argument(
         "--pair",
-        metavar="JSON",
+        metavar="FILE.json",
         default=None,
-        help="a spur pair's geometry as a JSON object of gear_env.sim.geometry.SpurPair keywords (SI): "
+        help="a JSON file holding a spur pair's geometry, an object of gear_env.sim.geometry.SpurPair keywords (SI): "
         "k_m0, stiffness harmonics, masses and inertias from the teeth; --params fields override them",
     )
     p.add_argument(
@@ -93,6 +93,14 @@ def add_params_options(p: argparse.ArgumentParser) -> None:
         help="Newmark scheme: paper (beta 1/4, default, unconditionally stable) or fox-goodwin (beta 1/12: "
         "less error per step, stable above a step count that grows at low omega; GearParams.newmark_beta)",
     )
+
+
+def scheme_text(params: Any) -> str:
+    """The Newmark scheme of ``params`` for a command's printout: "paper (beta 1/4)", "fox-goodwin (beta 1/12)"."""
+    from ..sim.params import FOX_GOODWIN_BETA, NEWMARK_BETA
+
+    b = params.newmark_beta
+    return {NEWMARK_BETA: "paper (beta 1/4)", FOX_GOODWIN_BETA: "fox-goodwin (beta 1/12)"}.get(b, f"beta {b:.6g}")
 
 
 def params_from_args(args: argparse.Namespace) -> Any:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .common import add_model_options, check_memory, float_range, int_range, params_from_args, writes
+from .common import add_model_options, check_memory, float_range, int_range, params_from_args, scheme_text, writes
 
 MAX_PERIODS = 10_000_000
 """Upper bound of ``--periods`` and ``--transient`` (the memory estimate usually binds first)."""
@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     motion = classify_motion(traj.poincare_rows[:, :10]).label if args.periods >= 2 else "(needs --periods >= 2)"
     print(
         f"omega={args.omega:g} model={args.model} periods={args.periods} transient={args.transient} "
-        f"steps/period={n}\n"
+        f"steps/period={n} scheme={scheme_text(params)}\n"
         f"amplitude U={d['amplitude_u']:.6g}  Delta={d['amplitude_delta']:.6g}  b_d={d['amplitude_bd']:.6g}  "
         f"psi={d['amplitude_psi']:.3g} rad  contact loss={d['contact_loss_fraction']:.3f}\n"
         f"motion: {motion} (from the Poincare section; `gear-env sweep` adds the Lyapunov exponent)"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .common import add_model_options, float_range, int_range, params_from_args, writes
+from .common import add_model_options, float_range, int_range, params_from_args, scheme_text, writes
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -47,7 +47,10 @@ def run(args: argparse.Namespace) -> int:
         args.steps_per_period,
         cache=not args.no_cache,
     )
-    print(f"model={m.model} omega in [{m.omega[0]:g}, {m.omega[-1]:g}], {len(m.omega)} points")
+    print(
+        f"model={m.model} omega in [{m.omega[0]:g}, {m.omega[-1]:g}], {len(m.omega)} points, "
+        f"scheme={scheme_text(params)}"
+    )
     print("period-1 orbit:")
     for lo, hi, lab in m.intervals():
         print(f"  [{lo:.3f}, {hi:.3f}]  {lab}")

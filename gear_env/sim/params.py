@@ -170,11 +170,18 @@ def _range_text(lo: float, hi: float, lo_in: bool, hi_in: bool) -> str:
     return f"{'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
 
 
+BETA_SNAP = 1e-6
+"""A ``newmark_beta`` within this of 1/12 is taken as 1/12 (Fox-Goodwin), so that a rounded 0.083333 means it."""
+
+
 def _check_range(name: str, value: float) -> None:
     lo, hi, lo_in, hi_in = BOUNDS[name]
     ok = math.isfinite(value) and (value >= lo if lo_in else value > lo) and (value <= hi if hi_in else value < hi)
     if not ok:
-        raise ValueError(f"GearParams.{name} must be in {_range_text(lo, hi, lo_in, hi_in)}, got {value!r}")
+        text = _range_text(lo, hi, lo_in, hi_in)
+        if name == "newmark_beta":
+            text = f"[1/12, 1/4] (1/12 = {FOX_GOODWIN_BETA!r}: Fox-Goodwin; 1/4: the paper's scheme)"
+        raise ValueError(f"GearParams.{name} must be in {text}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -242,7 +249,8 @@ class GearParams:
             backlash's own dependence on the centre positions and psi's; :data:`FORCE_DIRECTIONS`). Carried
             by :func:`gear_env.simulate` and :class:`gear_env.GearSimulator`; the other entry points refuse
             ``"gradient"``.
-        newmark_beta: the integrator's Newmark beta (numerics, not physics; gamma = 1/2), in [1/12, 1/4].
+        newmark_beta: the integrator's Newmark beta (numerics, not physics; gamma = 1/2), in [1/12, 1/4]
+            (a value within 1e-6 of 1/12, such as 0.083333, is taken as 1/12).
             1/4 (default, :data:`NEWMARK_BETA`): the paper's average acceleration, unconditionally stable.
             1/12 (:data:`FOX_GOODWIN_BETA`, Fox-Goodwin): the same cost per step and 2-10x less error on
             period-1 orbits at omega 0.6-2 (docs/SIMULATOR.md, "Fox-Goodwin"), stable for steps below
@@ -312,6 +320,8 @@ class GearParams:
                 raise ValueError(
                     f"GearParams.{f.name} must be a real number in {_range_text(flo, fhi, lo_in, hi_in)}, got {v!r}"
                 )
+            if f.name == "newmark_beta" and abs(float(v) - FOX_GOODWIN_BETA) <= BETA_SNAP:
+                v = FOX_GOODWIN_BETA  # a rounded 1/12 (0.0833333) means Fox-Goodwin
             object.__setattr__(self, f.name, float(v))
             _check_range(f.name, float(v))
         if not isinstance(self.backlash_law, str) or self.backlash_law not in BACKLASH_LAWS:
