@@ -72,12 +72,12 @@ def main(argv: list[str] | None = None) -> int:
     for spec in args.beta:
         b, _, n = spec.partition(":")
         try:
-            par_b, n_b = GearParams(newmark_beta=float(Fraction(b))), int(n)
+            par_b, n_b = GearParams(newmark_beta=float(Fraction(b))), int(n)  # GearParams snaps a rounded 1/12
         except (ValueError, ZeroDivisionError) as exc:
             ap.error(
                 f"--beta {spec!r}: need BETA:N, BETA in [1/12, 1/4] (a number or a fraction) and N an integer ({exc})"
             )
-        modes.append((f"beta {float(Fraction(b)):.4g} {n_b}", None, n_b, par_b))
+        modes.append((f"beta {par_b.newmark_beta:.4g} {n_b}", None, n_b, par_b))
     w_low = 0.7 if args.speed_only else 0.3
     for name, _tol, nsp, par in modes:  # refused before the references are computed
         if nsp is None:

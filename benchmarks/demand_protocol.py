@@ -316,7 +316,8 @@ def _main(args: argparse.Namespace) -> int:
         print(calibrate(cfg, parse_seed_set(args.set), env_id))
         return 0
     seeds = parse_seed_set(args.set)
-    label = args.set.replace(":", "_") + ("" if env_id == DEMAND_TASKS[0] else f"_{env_id}")
+    base_label = args.set.replace(":", "_") + ("" if env_id == DEMAND_TASKS[0] else f"_{env_id}")
+    label = base_label
     if settings:  # results under other settings never mix with the task's in the cache
         digest = hashlib.sha256(json.dumps(cfg.to_dict(), sort_keys=True).encode()).hexdigest()[:12]
         label += f"_config-{digest}"
@@ -331,9 +332,7 @@ def _main(args: argparse.Namespace) -> int:
     md, nums = table(results, ref)
     out: dict = {"set": args.set, "seeds": [seeds.start, seeds.stop - 1], "policies": nums}
     if args.against_task:
-        base_label = args.set.replace(":", "_") + ("" if env_id == DEMAND_TASKS[0] else f"_{env_id}")
-        base_cfg = task_config(env_id)
-        base = {s: rollout(s, base_cfg, seeds, cache, base_label, env_id) for s in results}
+        base = {s: rollout(s, task_config(env_id), seeds, cache, base_label, env_id) for s in results}
         md_c, out["change_vs_task"] = change_table(base, results)
         md += f"\n\nThe same episodes under the task's own settings, and the paired change --config makes:\n\n{md_c}"
     if runs:

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..sim import kernels as K
-from ..sim.params import NEWMARK_BETA, GearParams, model_code, refuse_extensions
+from ..sim.params import GearParams, model_code, refuse_extensions
 from ..sim.simulator import (
     GearSimulator,
     auto_steps_rule,
@@ -108,7 +108,7 @@ class SweepConfig:
             "lyap_tol": self.lyap_tol,
             "max_extend": self.max_extend,
             "d0": self.d0,
-        } | ({} if self.params.newmark_beta == NEWMARK_BETA else {"auto_steps": auto_steps_rule(self.params)})
+        } | ({} if (rule := auto_steps_rule(self.params)) == auto_steps_rule() else {"auto_steps": rule})
 
 
 CHAOS_MARGIN = 10.0

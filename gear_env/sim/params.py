@@ -166,7 +166,14 @@ paper's model is what it was before they existed."""
 TEETH_RANGE = (5, 1000)
 
 
-def _range_text(lo: float, hi: float, lo_in: bool, hi_in: bool) -> str:
+RANGE_TEXT = {"newmark_beta": f"[1/12, 1/4] (1/12 = {FOX_GOODWIN_BETA!r}: Fox-Goodwin; 1/4: the paper's scheme)"}
+"""How a refusal writes the range of a field whose bounds ``%g`` would round (``BOUNDS`` gives the others)."""
+
+
+def _range_text(name: str) -> str:
+    if name in RANGE_TEXT:
+        return RANGE_TEXT[name]
+    lo, hi, lo_in, hi_in = BOUNDS[name]
     return f"{'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
 
 
@@ -178,10 +185,7 @@ def _check_range(name: str, value: float) -> None:
     lo, hi, lo_in, hi_in = BOUNDS[name]
     ok = math.isfinite(value) and (value >= lo if lo_in else value > lo) and (value <= hi if hi_in else value < hi)
     if not ok:
-        text = _range_text(lo, hi, lo_in, hi_in)
-        if name == "newmark_beta":
-            text = f"[1/12, 1/4] (1/12 = {FOX_GOODWIN_BETA!r}: Fox-Goodwin; 1/4: the paper's scheme)"
-        raise ValueError(f"GearParams.{name} must be in {text}, got {value!r}")
+        raise ValueError(f"GearParams.{name} must be in {_range_text(name)}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -316,10 +320,7 @@ class GearParams:
                 object.__setattr__(self, f.name, int(v))
                 continue
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-                flo, fhi, lo_in, hi_in = BOUNDS[f.name]
-                raise ValueError(
-                    f"GearParams.{f.name} must be a real number in {_range_text(flo, fhi, lo_in, hi_in)}, got {v!r}"
-                )
+                raise ValueError(f"GearParams.{f.name} must be a real number in {_range_text(f.name)}, got {v!r}")
             if f.name == "newmark_beta" and abs(float(v) - FOX_GOODWIN_BETA) <= BETA_SNAP:
                 v = FOX_GOODWIN_BETA  # a rounded 1/12 (0.0833333) means Fox-Goodwin
             object.__setattr__(self, f.name, float(v))
