@@ -28,6 +28,10 @@ GEAR_ENV_IDS = (
     "GearSpeedDemand-v0",
     "GearSpeedDemandHard-v0",
     "GearSpeedDemandLimit-v0",
+    "GearSpeed-v2",
+    "GearSpeedDemand-v1",
+    "GearSpeedDemandHard-v1",
+    "GearSpeedDemandLimit-v1",
 )
 """The registered gear tasks (``gear_env.envs.tasks.TASK_SETTINGS``): one config class, different settings."""
 

@@ -120,7 +120,11 @@ DEMAND_SCRIPTS: dict[str, tuple[Any, str]] = {
 
 def pretrained_dir(env_id: str = "GearSpeed-v0") -> Path:
     """Folder of the policy shipped for ``env_id``: GearSpeed-v0's is a run folder without checkpoints
-    (``data/pretrained``), the others ``policy.json`` + ``policy.pt`` (``data/policies/<env_id>``)."""
+    (``data/pretrained``), the others ``policy.json`` + ``policy.pt`` (``data/policies/<env_id>``). A Fox-Goodwin
+    task shares the policy of the task it integrates differently (``gear_env.envs.tasks.base_task``)."""
+    from gear_env.envs.tasks import base_task
+
+    env_id = base_task(env_id)
     if env_id == "GearSpeed-v0":
         return Path(str(resources.files("gear_env") / "data" / "pretrained"))
     return Path(str(resources.files("gear_env") / "data" / "policies" / env_id))
@@ -254,6 +258,8 @@ def resolve_policy(spec: str, config: Any = None, env_id: str | None = None, all
     if s == "pretrained" or os.path.isdir(s) or os.sep in s or s.endswith(".zip"):
         for module in ("torch", "stable_baselines3"):
             require(module, f"policy {s!r} (a trained network)")
+    from gear_env.envs.tasks import base_task
+
     from .trained import load_trained_policy
 
     if s == "pretrained" and env_id not in (None, "GearSpeed-v0"):
@@ -263,7 +269,7 @@ def resolve_policy(spec: str, config: Any = None, env_id: str | None = None, all
         if not (d / "policy.json").is_file():
             raise ValueError(f"no pretrained policy is shipped for {env_id!r} ({str(d)!r} has no policy.json)")
         pol = load_policy(d, name="pretrained")
-        if pol.env_id != env_id:
+        if pol.env_id != base_task(env_id):
             raise ValueError(f"{str(d / 'policy.json')!r}: env_id: the policy is for {pol.env_id!r}, not {env_id!r}")
         if config is not None:
             from gear_env.envs.env import GearSpeedEnv
@@ -285,7 +291,8 @@ def resolve_policy(spec: str, config: Any = None, env_id: str | None = None, all
     if loc is not None:
         path, model_file = loc
         trained = trained_env_id(s)
-        if env_id is not None and trained is not None and trained != env_id and not allow_other_env:
+        same = env_id is None or trained is None or base_task(trained) == base_task(env_id)  # the scheme may differ
+        if not same and not allow_other_env:
             raise ValueError(
                 f"policy {spec!r} was trained on {trained} ({str(path / 'config.json')!r}), not on {env_id}: its "
                 f"scores there would judge it on another task. Evaluate it with --env {trained}, or pass "

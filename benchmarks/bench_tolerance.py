@@ -121,11 +121,15 @@ def main(argv: list[str] | None = None) -> int:
             f"{len(cases)} period-1 orbits in all (omega 0.3-3.0 step {args.omega_step}, both models), "
             "10 Poincare points"
         )
-        print("mode        | median error | p95 error | max error | Newmark steps per period (mean)")
+        print("mode        | median error | p95 error | max error | orbits > 1e-3 (their omegas) | Newmark steps per "
+              "period (mean)")  # fmt: skip
+    ws = np.array([w for _m, w, _x, _r in cases])
     for name, *_ in [] if args.speed_only else modes:
         e = np.array(errs[name])
+        over = ws[e > 1e-3]
+        where = f" ({over.min():.2f}-{over.max():.2f})" if len(over) else ""
         print(f"{name:16s} | {np.median(e):12.2e} | {np.percentile(e, 95):9.2e} | {np.max(e):9.2e} | "
-              f"{np.mean(steps[name]):.0f}")  # fmt: skip
+              f"{len(over):4d}{where:12s} | {np.mean(steps[name]):.0f}")  # fmt: skip
     # speed, interleaved: the same states, all modes in turn, several rounds
     timed = cases if args.speed_only else cases[:: max(1, len(cases) // 12)]
     total = dict.fromkeys([m[0] for m in modes], 0.0)

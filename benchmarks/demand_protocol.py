@@ -19,7 +19,9 @@ the runs the IQM of the per-episode gap scores with its
 (the shipped run's rule). ``--cache DIR`` keeps each (policy, episode) result in DIR/<set>/<policy>.json, so
 baselines are rolled out once (a changed policy needs a fresh cache file: delete it). ``--config`` changes the
 task's settings (for instance the integration scheme); its results are cached apart from the task's, and
-``--against-task`` adds the paired per-episode change of every policy against the task's own settings.
+``--against-task`` adds the paired per-episode change of every policy against the task's own settings. On a
+Fox-Goodwin task (``--env GearSpeedDemand-v1``, ...), ``--against-base`` adds the paired change against the older
+id it integrates differently (``gear_env.envs.tasks.FOX_GOODWIN_TASKS``).
 """
 
 from __future__ import annotations
@@ -35,7 +37,14 @@ from pathlib import Path
 
 import numpy as np
 
-DEMAND_TASKS = ("GearSpeedDemand-v0", "GearSpeedDemandHard-v0", "GearSpeedDemandLimit-v0")
+DEMAND_TASKS = (
+    "GearSpeedDemand-v0",
+    "GearSpeedDemandHard-v0",
+    "GearSpeedDemandLimit-v0",
+    "GearSpeedDemand-v1",
+    "GearSpeedDemandHard-v1",
+    "GearSpeedDemandLimit-v1",
+)
 """The tasks of the tables (``--env``; the first is the default)."""
 BASELINES = ("oracle", "fixed-best", "delayed-oracle:10", "identify-follow", "sensor-servo", "pretrained")
 COST_TERMS = ("reward_chaos", "reward_contact", "reward_impact", "reward_vibration", "reward_rate", "reward_divergence")
@@ -197,16 +206,21 @@ def fmt(m: float, lo: float, hi: float, pct: bool = False) -> str:
     return f"{k * m:.2f}{u} [{k * lo:.2f}, {k * hi:.2f}]" if not pct else f"{k * m:.1f}{u} [{k * lo:.1f}, {k * hi:.1f}]"
 
 
-def change_table(base: dict[str, list[dict]], changed: dict[str, list[dict]]) -> tuple[str, dict]:
+def change_table(
+    base: dict[str, list[dict]],
+    changed: dict[str, list[dict]],
+    names: tuple[str, str] = ("task's settings", "--config"),
+) -> tuple[str, dict]:
     """Markdown table (and its numbers) of each policy's return and gap share under the task's settings
-    (``base``) and under other settings (``changed``), with the paired per-episode change and its 95 % CI."""
+    (``base``) and under other settings (``changed``), with the paired per-episode change and its 95 % CI;
+    ``names`` label the two columns."""
     from agents.protocol import gap_closed, paired_diff
 
     R0 = {k: np.array([e["return"] for e in v]) for k, v in base.items()}
     R1 = {k: np.array([e["return"] for e in v]) for k, v in changed.items()}
+    a, b = names
     lines = [
-        "| policy | return, task's settings | return, --config | paired change [95 % CI] | gap closed, task's "
-        "settings | gap closed, --config |",
+        f"| policy | return, {a} | return, {b} | paired change [95 % CI] | gap closed, {a} | gap closed, {b} |",
         "|---|---:|---:|---:|---:|---:|",
     ]
     nums = {}
@@ -284,11 +298,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="with --config: also run every policy under the task's own settings and add a table of the paired "
         "per-episode change the settings make",
     )
+    ap.add_argument(
+        "--against-base",
+        action="store_true",
+        help="on a Fox-Goodwin task (GearSpeedDemand-v1, ...): also run every policy on the older task it integrates "
+        "differently (GearSpeedDemand-v0, ...) and add a table of the paired per-episode change the scheme makes",
+    )
     ap.add_argument("--markdown", metavar="PATH")
     ap.add_argument("--json", metavar="PATH")
     args = ap.parse_args(argv)
     if args.against_task and not args.config:
         ap.error("--against-task compares --config's settings with the task's: give --config")
+    from gear_env.envs.tasks import base_task
+
+    if args.against_base and (base_task(args.env) == args.env or args.config):
+        ap.error("--against-base compares a Fox-Goodwin task (a v1 demand id) with its older id, without --config")
     from gear_env.io import hold_outputs
 
     with hold_outputs(
@@ -316,10 +340,15 @@ def _main(args: argparse.Namespace) -> int:
         print(calibrate(cfg, parse_seed_set(args.set), env_id))
         return 0
     seeds = parse_seed_set(args.set)
-    base_label = args.set.replace(":", "_") + ("" if env_id == DEMAND_TASKS[0] else f"_{env_id}")
+
+    def set_label(task: str) -> str:
+        return args.set.replace(":", "_") + ("" if task == DEMAND_TASKS[0] else f"_{task}")
+
+    base_label = set_label(env_id)
     label = base_label
     if settings:  # results under other settings never mix with the task's in the cache
-        digest = hashlib.sha256(json.dumps(cfg.to_dict(), sort_keys=True).encode()).hexdigest()[:12]
+        fields = {k: v for k, v in cfg.to_dict().items() if k != "scheme"}  # params.newmark_beta says it
+        digest = hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:12]
         label += f"_config-{digest}"
     cache = Path(args.cache) if args.cache else None
     specs = list(dict.fromkeys(["oracle", "fixed-best", *(args.policy or BASELINES[2:])]))
@@ -335,6 +364,13 @@ def _main(args: argparse.Namespace) -> int:
         base = {s: rollout(s, task_config(env_id), seeds, cache, base_label, env_id) for s in results}
         md_c, out["change_vs_task"] = change_table(base, results)
         md += f"\n\nThe same episodes under the task's own settings, and the paired change --config makes:\n\n{md_c}"
+    if args.against_base:
+        from gear_env.envs.tasks import base_task
+
+        older = base_task(env_id)
+        base = {s: rollout(s, task_config(older), seeds, cache, set_label(older), older) for s in results}
+        md_c, out["change_vs_base"] = change_table(base, results, (older, env_id))
+        md += f"\n\nThe same episodes on {older}, and the paired change the scheme makes:\n\n{md_c}"
     if runs:
         F = [e["return"] for e in results["fixed-best"]]
         O = [e["return"] for e in results["oracle"]]

@@ -173,12 +173,16 @@ class GearSpeedEnv(gym.Env):
 
     ## Tasks
 
-    One class, four registered tasks (``gear_env.envs.tasks.TASK_SETTINGS``; docs/ENVIRONMENT.md says why):
+    One class, nine registered tasks (``gear_env.envs.tasks.TASK_SETTINGS``; docs/ENVIRONMENT.md says why):
     ``GearSpeed-v0`` (the defaults), ``GearSpeed-v1`` (speed-reference actions, 48-period control
     step, 0.1 per step, 100 steps), ``GearSpeedDemand-v0`` (as v1, plus a gear pair drawn per
     episode from a family, a load duty cycle and a random operator demand; throughput paid only up to
     the demand) and ``GearSpeedDemandHard-v0`` (as GearSpeedDemand-v0, with noisy sensors, a one-step
-    actuator dead time and a wear change of the pair within the episode). ``self.episode`` is the
+    actuator dead time and a wear change of the pair within the episode), plus ``GearSpeedDemandLimit-v0``
+    (Demand-v0 with a rate-limited speed-limit action) and the Fox-Goodwin ids ``GearSpeed-v2``,
+    ``GearSpeedDemand-v1``, ``GearSpeedDemandLimit-v1``, ``GearSpeedDemandHard-v1`` (the four before them with
+    ``scheme="fox-goodwin"``: Newmark beta 1/12, the same cost per step, 6x less integration error;
+    ``gear_env.envs.tasks.FOX_GOODWIN_TASKS``). ``self.episode`` is the
     episode's scenario (an oracle may read it; the agent does not see it). ``info["cost"]`` (>= 0) sums
     the cost terms for safe-RL libraries.
 
@@ -198,6 +202,9 @@ class GearSpeedEnv(gym.Env):
       Changed in place in gear-env 0.4.0 (issue #16 open): ``reference_filter=0.1`` (was 1.0) and
       ``memory_steps=20`` (was 0: the observation gains ``trouble_omega``, ``trouble_recency``,
       ``prev_force_rms``, ``prev_contact_loss``); the shipped policy was retrained on it.
+    * GearSpeed-v2, GearSpeedDemand-v1, GearSpeedDemandLimit-v1, GearSpeedDemandHard-v1 (issue #24): GearSpeed-v1,
+      GearSpeedDemand-v0, GearSpeedDemandLimit-v0 and GearSpeedDemandHard-v0 integrated with Newmark beta 1/12
+      (``scheme="fox-goodwin"``); the older ids are unchanged.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}

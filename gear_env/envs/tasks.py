@@ -307,6 +307,16 @@ DEMAND_LIMIT_SETTINGS: dict[str, Any] = {
 """``GearSpeedDemandLimit-v0``: ``GearSpeedDemand-v0`` made learnable by stock learners: the action moves a speed limit
 (by at most 0.03 per step, within [1.15, 1.8]) under which the drive follows the demand, and the observation adds
 the limit and the speed-normalised force level (docs/tasks/GearSpeedDemandLimit-v0.md says why)."""
+FOX_GOODWIN_TASKS: dict[str, str] = {
+    "GearSpeed-v2": "GearSpeed-v1",
+    "GearSpeedDemand-v1": "GearSpeedDemand-v0",
+    "GearSpeedDemandLimit-v1": "GearSpeedDemandLimit-v0",
+    "GearSpeedDemandHard-v1": "GearSpeedDemandHard-v0",
+}
+"""The tasks integrated with Fox-Goodwin's Newmark beta (1/12; ``scheme="fox-goodwin"``) and the task each one is
+otherwise equal to: the same settings, spaces, rewards and cost per step, 4-5x less integration error (every return
+rises by 0.03-0.17 and no ranking changes; docs/ENVIRONMENT.md). A new id, not a changed one, because the
+dynamics differ (Gymnasium's versioning rule): every published number of the older ids stays valid."""
 TASK_SETTINGS: dict[str, dict[str, Any]] = {
     "GearSpeed-v0": {},
     "GearSpeed-v1": V1_SETTINGS,
@@ -315,3 +325,10 @@ TASK_SETTINGS: dict[str, dict[str, Any]] = {
     "GearSpeedDemandHard-v0": DEMAND_HARD_SETTINGS,
 }
 """Registered tasks and their settings (``gym.make(ID)`` uses these; keywords override them)."""
+TASK_SETTINGS.update({new: {**TASK_SETTINGS[old], "scheme": "fox-goodwin"} for new, old in FOX_GOODWIN_TASKS.items()})
+
+
+def base_task(env_id: str) -> str:
+    """The task whose policies, hyperparameters and scripts ``env_id`` shares: the older id of a Fox-Goodwin task
+    (:data:`FOX_GOODWIN_TASKS`), else ``env_id`` itself."""
+    return FOX_GOODWIN_TASKS.get(env_id, env_id)

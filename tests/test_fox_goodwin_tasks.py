@@ -1,0 +1,116 @@
+"""The Fox-Goodwin tasks (GearSpeed-v2, GearSpeedDemand-v1, ...): the older task with Newmark beta 1/12.
+
+A new id is the older id plus ``scheme="fox-goodwin"``: its config equals the older one's with that beta, an
+episode equals one of the older id made with that beta (bit for bit), the ``scheme`` setting wins over the beta
+of whatever pair a user passes, and the shipped policy and recipe of the older id serve the new one.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import gear_env  # noqa: F401  (registers the tasks)
+from gear_env.envs.env_config import task_config
+from gear_env.envs.tasks import FOX_GOODWIN_TASKS, TASK_SETTINGS, base_task
+from gear_env.sim.params import FOX_GOODWIN_BETA, NEWMARK_BETA, GearParams
+
+SHORT = {"max_steps": 4, "periods_per_step": 8, "warmup_periods": 16}
+
+
+@pytest.mark.parametrize("new, old", sorted(FOX_GOODWIN_TASKS.items()))
+def test_new_id_is_the_older_task_with_fox_goodwin(new, old):
+    assert new in TASK_SETTINGS and gym.spec(new).max_episode_steps == gym.spec(old).max_episode_steps
+    a, b = task_config(new), task_config(old)
+    assert a.scheme == "fox-goodwin" and b.scheme is None
+    assert a.params.newmark_beta == FOX_GOODWIN_BETA and b.params.newmark_beta == NEWMARK_BETA
+    assert a.params == b.params.replace(newmark_beta=FOX_GOODWIN_BETA)
+    differ = [k for k in a.field_names() if k not in ("scheme", "params") and getattr(a, k) != getattr(b, k)]
+    assert differ == []
+    assert base_task(new) == old and base_task(old) == old
+
+
+@pytest.mark.parametrize("new, old", sorted(FOX_GOODWIN_TASKS.items()))
+def test_a_fox_goodwin_episode_equals_the_older_id_with_beta_one_twelfth(new, old):
+    env_a = gym.make(new, **SHORT)
+    env_b = gym.make(old, params={"newmark_beta": 1 / 12}, **SHORT)
+    env_c = gym.make(old, **SHORT)
+    oa, _ = env_a.reset(seed=11)
+    ob, _ = env_b.reset(seed=11)
+    oc, _ = env_c.reset(seed=11)
+    assert np.array_equal(oa, ob)
+    moved = not np.array_equal(oa, oc)
+    for k in range(SHORT["max_steps"]):
+        act = np.array([0.4 - 0.2 * k], np.float32)
+        ra, rb, rc = env_a.step(act), env_b.step(act), env_c.step(act)
+        assert np.array_equal(ra[0], rb[0]) and ra[1] == rb[1]
+        moved = moved or not np.array_equal(ra[0], rc[0])
+    assert moved  # the scheme changes the dynamics (why the id is new)
+
+
+def test_the_scheme_wins_over_the_beta_of_a_passed_pair():
+    kappa = 0.5 * GearParams().kappa
+    for params in ({"kappa": kappa}, GearParams(kappa=kappa), GearParams(kappa=kappa, newmark_beta=0.2)):
+        cfg = gym.make("GearSpeed-v2", params=params).unwrapped.config
+        assert cfg.params.newmark_beta == FOX_GOODWIN_BETA and cfg.params.kappa == kappa
+    assert gym.make("GearSpeed-v2", scheme="paper").unwrapped.config.params.newmark_beta == NEWMARK_BETA
+    cfg = gym.make("GearSpeed-v2", scheme=None, params={"newmark_beta": 0.2}).unwrapped.config
+    assert cfg.params.newmark_beta == 0.2
+    cfg = gym.make("GearSpeed-v1", scheme="fox-goodwin").unwrapped.config
+    assert cfg == task_config("GearSpeed-v2")
+    # the round trip through a dict (a run folder's config.json) keeps the scheme
+    assert type(cfg).from_kwargs(cfg.to_dict()) == cfg
+
+
+@pytest.mark.parametrize("bad", ["fox_goodwin", "Paper", 1, True])
+def test_a_bad_scheme_is_refused_naming_the_field_and_the_choices(bad):
+    with pytest.raises(ValueError, match=r"scheme must be one of \['paper', 'fox-goodwin'\]"):
+        task_config("GearSpeed-v2", {"scheme": bad})
+
+
+def test_tol_on_a_fox_goodwin_task_names_the_scheme():
+    with pytest.raises(ValueError, match=r"tol .*scheme='fox-goodwin'.*scheme=\"paper\""):
+        task_config("GearSpeedDemand-v1", {"tol": 1e-3})
+    assert task_config("GearSpeedDemand-v1", {"tol": 1e-3, "scheme": "paper"}).tol == 1e-3
+
+
+def test_the_vector_env_of_a_new_id_matches_its_single_env():
+    venv = gym.make_vec("GearSpeed-v2", num_envs=2, vectorization_mode="vector_entry_point", **SHORT)
+    env = gym.make("GearSpeed-v2", **SHORT)
+    ov, _ = venv.reset(seed=[5, 6])
+    os_, _ = env.reset(seed=5)
+    assert np.array_equal(ov[0], os_)
+    for k in range(3):
+        a = np.full((2, 1), 0.3 * (-1) ** k, np.float32)
+        rv = venv.step(a)
+        rs = env.step(a[0])
+        assert np.array_equal(rv[0][0], rs[0]) and rv[1][0] == rs[1]
+
+
+def test_the_older_ids_recipe_and_policy_serve_the_new_id():
+    from pathlib import Path
+
+    import yaml
+
+    import agents
+    from agents.envs import GEAR_ENV_IDS
+    from agents.registry import pretrained_dir
+
+    assert set(GEAR_ENV_IDS) == set(TASK_SETTINGS)
+    conf = yaml.safe_load((Path(agents.__file__).parent / "hyperparams" / "ppo.yml").read_text())
+    for new, old in FOX_GOODWIN_TASKS.items():
+        assert conf[new] == conf[old]
+        assert pretrained_dir(new) == pretrained_dir(old)
+
+
+def test_the_shipped_policy_runs_on_a_new_id():
+    pytest.importorskip("torch")
+    from agents.registry import resolve_policy
+
+    cfg = task_config("GearSpeedDemand-v1", SHORT)
+    pol = resolve_policy("pretrained", cfg, env_id="GearSpeedDemand-v1")
+    env = gym.make("GearSpeedDemand-v1", **SHORT)
+    obs, _ = env.reset(seed=0)
+    a = np.asarray(pol.predict(obs, deterministic=True)[0], np.float32).reshape(1)
+    assert np.all(np.abs(a) <= 1.0) and np.isfinite(env.step(a)[1])
