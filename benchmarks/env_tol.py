@@ -11,7 +11,15 @@ the cost the CPU time of the steps (the settings interleaved per seed, so drift 
     python benchmarks/env_tol.py --seeds 20 --steps 40 --json env_tol.json
     python benchmarks/env_tol.py --vector 16 --rounds 5   # also the vector env's env-steps/s, Fox-Goodwin vs 64 steps
 
-The Fox-Goodwin settings are ``params={"newmark_beta": 1/12}`` (``GearParams.newmark_beta``), at 64 and 96 steps.
+The Fox-Goodwin settings are ``params={"newmark_beta": 1/12}`` (``GearParams.newmark_beta``), at 64 and 96 steps,
+and with ``steps_per_period="auto"`` (48, 64 or 80 steps by the contact loss of the step before: the Fox-Goodwin
+ids' setting).
+
+    python benchmarks/env_tol.py --task-cost 20 --policy pretrained   # the cost on the task as a policy runs it
+
+``--task-cost N`` runs N episodes of ``--policy`` on the task, on its Fox-Goodwin id (``GearSpeedDemand-v1`` for
+``GearSpeedDemand-v0``) and on that id with ``steps_per_period="auto"``, interleaved per episode, and prints the CPU
+ratios and the auto run's mean steps per mesh period.
 
 ``--json FILE`` writes the run's record (benchmarks/bench_record.py; benchmarks/make_tables.py reads it).
 """
@@ -33,6 +41,7 @@ SETTINGS = {
     "tol 1e-5": {"tol": 1e-5},
     "Fox-Goodwin 64 steps": {"params": FOX_GOODWIN},
     "Fox-Goodwin 96 steps": {"params": FOX_GOODWIN, "steps_per_period": 96},
+    "Fox-Goodwin auto": {"params": FOX_GOODWIN, "steps_per_period": "auto"},
 }
 
 
@@ -59,6 +68,7 @@ def vector_rates(env_id: str, n: int, rounds: int, seconds: float) -> dict[str, 
     envs = {
         "64 steps (default)": GearSpeedVectorEnv(n, task_config(env_id, {})),
         "Fox-Goodwin 64 steps": GearSpeedVectorEnv(n, task_config(env_id, {"params": FOX_GOODWIN})),
+        "Fox-Goodwin auto": GearSpeedVectorEnv(n, task_config(env_id, SETTINGS["Fox-Goodwin auto"])),
     }
     rng = np.random.default_rng(1)
     for e in envs.values():
@@ -75,6 +85,40 @@ def vector_rates(env_id: str, n: int, rounds: int, seconds: float) -> dict[str, 
     return out
 
 
+def task_cost(env_id: str, spec: str, episodes: int, rec) -> None:
+    """CPU of ``episodes`` episodes of policy ``spec`` on ``env_id``, on its Fox-Goodwin id and on that id with
+    ``steps_per_period="auto"``, interleaved per episode."""
+    import gymnasium as gym
+
+    from agents.registry import resolve_policy
+    from gear_env.envs.env_config import task_config
+    from gear_env.envs.tasks import FOX_GOODWIN_TASKS
+    from gear_env.evaluation.episodes import run_episode
+
+    fg_id = {old: new for new, old in FOX_GOODWIN_TASKS.items()}[env_id]
+    runs = {env_id: (env_id, {}), fg_id: (fg_id, {}), f"{fg_id}, auto steps": (fg_id, {"steps_per_period": "auto"})}
+    cpu = dict.fromkeys(runs, 0.0)
+    counts: list[int] = []
+    for tid, kw in runs.values():  # warm up (maps, compilation)
+        run_episode(gym.make(tid, **kw), resolve_policy(spec, task_config(tid, kw), env_id=tid), 799999)
+    for ep in range(episodes):
+        for name, (tid, kw) in runs.items():
+            env = gym.make(tid, **kw)
+            pol = resolve_policy(spec, task_config(tid, kw), env_id=tid)
+            core = env.unwrapped._core
+            count = (lambda info, core=core: counts.append(int(core.n_steps[0]))) if kw else None
+            t0 = time.process_time()
+            run_episode(env, pol, 800000 + ep, count)
+            cpu[name] += time.process_time() - t0
+    print(f"\n{spec} on {episodes} episodes (seeds 800000-), CPU against {env_id}:")
+    for name in runs:
+        print(f"  {name}: {cpu[name] / cpu[env_id]:.2f}x")
+        rec.add(f"{spec} on {name} vs {env_id}: CPU per episode", "ratio", [cpu[name] / cpu[env_id]])
+    c = np.array(counts)
+    print(f"  auto steps per mesh period: mean {c.mean():.1f} (48/64/80: "
+          + " / ".join(f"{np.mean(c == k):.2f}" for k in (48, 64, 80)) + ")")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     import gear_env  # noqa: F401
 
@@ -85,6 +129,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--vector", type=int, default=0, metavar="N",
                     help="also time GearSpeedVectorEnv(N), Fox-Goodwin 64 steps against 64 steps")  # fmt: skip
     ap.add_argument("--rounds", type=int, default=5, help="rounds of the vector timing (5)")
+    ap.add_argument("--task-cost", type=int, default=0, metavar="N",
+                    help="also: N episodes of --policy on the task and its Fox-Goodwin id, interleaved "
+                         "(CPU ratio)")  # fmt: skip
+    ap.add_argument("--policy", default="pretrained", help="policy spec of --task-cost (default pretrained)")
     ap.add_argument("--json", metavar="FILE", help="also write a JSON record (benchmarks/make_tables.py reads it)")
     ap.add_argument("--settings", nargs="+", metavar="NAME", choices=list(SETTINGS), default=list(SETTINGS),
                     help="only these settings (the 64-step default always runs: ratios are against it)")  # fmt: skip
@@ -133,13 +181,17 @@ def main(argv: list[str] | None = None) -> int:
         import os
 
         rates = vector_rates(args.env, args.vector, args.rounds, 1.0)
-        a, b = np.array(rates["64 steps (default)"]), np.array(rates["Fox-Goodwin 64 steps"])
-        ratio = b / a
+        a = np.array(rates["64 steps (default)"])
         print(f"\nGearSpeedVectorEnv({args.vector}), {args.rounds} interleaved rounds (load average "
-              f"{os.getloadavg()[0]:.1f}): 64 steps {np.median(a):.0f}, Fox-Goodwin 64 {np.median(b):.0f} env-steps/s; "
-              f"ratio {np.median(ratio):.2f} [{ratio.min():.2f}, {ratio.max():.2f}]")  # fmt: skip
-        rec.add(f"{args.env}, GearSpeedVectorEnv({args.vector}): Fox-Goodwin 64 steps vs 64 steps, env-steps/s",
-                "ratio", [float(np.median(ratio))], note=f"range {ratio.min():.2f}-{ratio.max():.2f}")  # fmt: skip
+              f"{os.getloadavg()[0]:.1f}): 64 steps {np.median(a):.0f} env-steps/s")  # fmt: skip
+        for name in ("Fox-Goodwin 64 steps", "Fox-Goodwin auto"):
+            ratio = np.array(rates[name]) / a
+            print(f"  {name}: {np.median(rates[name]):.0f} env-steps/s; ratio {np.median(ratio):.2f} "
+                  f"[{ratio.min():.2f}, {ratio.max():.2f}]")  # fmt: skip
+            rec.add(f"{args.env}, GearSpeedVectorEnv({args.vector}): {name} vs 64 steps, env-steps/s",
+                    "ratio", [float(np.median(ratio))], note=f"range {ratio.min():.2f}-{ratio.max():.2f}")  # fmt: skip
+    if args.task_cost:
+        task_cost(args.env, args.policy, args.task_cost, rec)
     if args.json:
         rec.write(args.json)
     return 0

@@ -12,9 +12,12 @@ import numpy as np
 import pytest
 
 import gear_env  # noqa: F401  (registers the tasks)
+from gear_env import GearSimulator
 from gear_env.envs.env_config import task_config
 from gear_env.envs.tasks import FOX_GOODWIN_TASKS, TASK_SETTINGS, base_task
+from gear_env.sim.integration import CONTACT_STEPS, contact_steps
 from gear_env.sim.params import FOX_GOODWIN_BETA, NEWMARK_BETA, GearParams
+from gear_env.sim.reference import reference_poincare
 
 SHORT = {"max_steps": 4, "periods_per_step": 8, "warmup_periods": 16}
 
@@ -24,6 +27,7 @@ def test_new_id_is_the_older_task_with_fox_goodwin(new, old):
     assert new in TASK_SETTINGS and gym.spec(new).max_episode_steps == gym.spec(old).max_episode_steps
     a, b = task_config(new), task_config(old)
     assert a.scheme == "fox-goodwin" and b.scheme is None
+    assert a.steps_per_period == b.steps_per_period == 64
     assert a.params.newmark_beta == FOX_GOODWIN_BETA and b.params.newmark_beta == NEWMARK_BETA
     assert a.params == b.params.replace(newmark_beta=FOX_GOODWIN_BETA)
     differ = [k for k in a.field_names() if k not in ("scheme", "params") and getattr(a, k) != getattr(b, k)]
@@ -114,3 +118,80 @@ def test_the_shipped_policy_runs_on_a_new_id():
     obs, _ = env.reset(seed=0)
     a = np.asarray(pol.predict(obs, deterministic=True)[0], np.float32).reshape(1)
     assert np.all(np.abs(a) <= 1.0) and np.isfinite(env.step(a)[1])
+
+
+def test_auto_steps_with_the_papers_beta_are_64_bit_for_bit():
+    """steps_per_period="auto" with the paper's beta is 64 fixed steps: GearSpeed-v2 with scheme="paper" is v1."""
+    a = gym.make("GearSpeed-v2", scheme="paper", steps_per_period="auto", **SHORT)
+    b = gym.make("GearSpeed-v1", **SHORT)
+    oa, _ = a.reset(seed=4)
+    ob, _ = b.reset(seed=4)
+    assert np.array_equal(oa, ob)
+    for k in range(SHORT["max_steps"]):
+        act = np.array([0.5 - 0.3 * k], np.float32)
+        ra, rb = a.step(act), b.step(act)
+        assert np.array_equal(ra[0], rb[0]) and ra[1] == rb[1]
+    assert set(a.unwrapped._core.n_steps.tolist()) == {64}
+
+
+def test_contact_steps_classes_and_bad_steps_refused():
+    assert [contact_steps(f) for f in (0.0, 0.2, 0.2000001, 0.5, 0.51, 1.0, float("nan"))] == [
+        48,
+        48,
+        64,
+        64,
+        80,
+        80,
+        80,
+    ]
+    assert contact_steps(np.array([0.1, 0.3, 0.9])).tolist() == list(CONTACT_STEPS)
+    # not periodic: at most the tasks' 64 (the rule is calibrated on period-1 orbits)
+    assert [contact_steps(f, False) for f in (0.1, 0.3, 0.9)] == [48, 64, 64]
+    assert contact_steps(np.array([0.1, 0.9, 0.9]), np.array([False, False, True])).tolist() == [48, 64, 80]
+    for bad in ("Auto", 15, 1025, 64.0, True):
+        with pytest.raises(ValueError, match=r'steps_per_period must be an integer in \[16, 1024\] or "auto"'):
+            task_config("GearSpeed-v2", {"steps_per_period": bad})
+
+
+def test_auto_steps_vector_env_with_mixed_counts_matches_the_single_envs():
+    """Sub-environments at different speeds take different step counts in one vector step (one batch per
+    count); each row's count depends only on its own past, so every row equals a single env bit for bit."""
+    n = 6
+    kw = dict(SHORT, max_steps=5, action_mode="target", initial_omega=None)
+    kw["steps_per_period"] = "auto"
+    venv = gym.make_vec("GearSpeed-v2", num_envs=n, vectorization_mode="vector_entry_point", **kw)
+    seeds = list(range(20, 20 + n))
+    ov, _ = venv.reset(seed=seeds)
+    rng = np.random.default_rng(0)
+    acts = rng.uniform(-1, 1, (kw["max_steps"], n, 1)).astype(np.float32)
+    seen = set()
+    outs = []
+    for t in range(kw["max_steps"]):
+        seen |= set(venv.unwrapped._core.n_steps.tolist())
+        outs.append(venv.step(acts[t]))
+    assert len(seen) >= 2, seen  # the grouped path ran
+    for i, sd in enumerate(seeds):
+        env = gym.make("GearSpeed-v2", **kw)
+        o, _ = env.reset(seed=sd)
+        assert np.array_equal(o, ov[i])
+        for t in range(kw["max_steps"]):
+            r = env.step(acts[t, i])
+            assert np.array_equal(r[0], outs[t][0][i]) and r[1] == outs[t][1][i], (i, t)
+
+
+@pytest.mark.parametrize("omega, model", [(1.49, "dynamic"), (1.42, "constant")])
+def test_contact_steps_bring_the_orbits_64_steps_miss_within_1e_3(omega, model):
+    """On the period-1 orbits where 64 Fox-Goodwin steps err by more than 1e-3 b0 against the event-located
+    reference, the teeth are apart most of the time, the rule takes 80 steps and the error is below 1e-3."""
+    fg = GearParams(newmark_beta=FOX_GOODWIN_BETA)
+    start = GearSimulator(GearParams(), model, 512, omega)
+    start.advance(300)
+    x0 = start.state
+    ref = reference_poincare(omega, model, None, 0, 10, initial_state=x0).states
+    sim = GearSimulator(fg, model, 64, omega, x0)
+    iv = sim.advance(10)
+    err = {64: float(np.max(np.abs(iv.poincare[:, :10] - ref)))}
+    sep = iv.separation_fraction
+    n = contact_steps(sep)
+    err[n] = float(np.max(np.abs(GearSimulator(fg, model, n, omega, x0).advance(10).poincare[:, :10] - ref)))
+    assert n == 80 and err[64] > 1e-3 and err[80] < 1e-3, (sep, err)

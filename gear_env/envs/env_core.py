@@ -23,9 +23,9 @@ import numpy as np
 
 from .._numba_cache import announce_compile
 from ..sim import kernels as K
-from ..sim.integration import TOL_N_START, integrate
+from ..sim.integration import CONTACT_STEPS, TOL_N_START, contact_steps, integrate
 from ..sim.linear import stability_frequency, stable_betas
-from ..sim.params import C_BETA, C_FS, GearParams, model_code, refuse_extensions
+from ..sim.params import C_BETA, C_FS, FOX_GOODWIN_BETA, GearParams, model_code, refuse_extensions
 from . import env_kernels as EK
 from . import env_terms as ET
 from . import force_level as FL
@@ -36,6 +36,14 @@ MAX_PERIOD = EK.MAX_PERIOD
 """Longest periodic orbit (in mesh periods) recognised by the periodicity defect."""
 LANES_MIN = 2
 """Batches of at least this many rows are advanced by ``batch_kernels.integrate_stats_lanes``."""
+AUTO_FIRST_STEPS = CONTACT_STEPS[1]
+"""``steps_per_period="auto"``: the steps per mesh period of a row's first interval in an episode (the warm-up)."""
+AUTO_OTHER_STEPS = 64
+"""``steps_per_period="auto"``: the steps per mesh period of a row whose beta is not Fox-Goodwin's."""
+AUTO_PERIODIC_SAMPLES = 8
+"""``steps_per_period="auto"``: the last Poincare samples of an interval that must repeat for period-1 motion."""
+AUTO_PERIODIC_DEFECT = 1e-3
+"""``steps_per_period="auto"``: largest change [b0] between those samples that still counts as period-1 motion."""
 
 TERMS = ET.task("GearSpeed-v0")
 """The ``GearSpeed-v0`` entries of :mod:`gear_env.envs.env_terms`."""
@@ -195,11 +203,14 @@ class GearSpeedCore:
         self.ACC = np.zeros((n, EK.N_ACC))
         self.S = terms.settings_vector(cfg)
         self.n_tol = np.full(n, TOL_N_START, np.int64)  # with `tol`: each row's coarse step count N
+        # steps_per_period="auto": each row's steps per mesh period for its next interval (contact_steps of its last)
+        self.auto = cfg.steps_per_period == "auto"
+        self.n_steps = np.full(n, AUTO_FIRST_STEPS if self.auto else cfg.steps_per_period, np.int64)
         # each row's stable Newmark step (natural time; inf for the paper's beta 1/4): steps_per_period is raised
         # to it per row and interval (Fox-Goodwin at low omega), so a row's steps depend only on its own omega
         self.beta = np.full(n, float(cfg.params.newmark_beta))  # each row's own Newmark beta
         self.w_stab = np.full(n, stability_frequency(cfg.params))  # Omega_max / margin, 0: unconditionally stable
-        self.w_floor = np.zeros(n)  # below this omega a row's beta is unstable at steps_per_period
+        self.w_floor = np.zeros(n)  # below w_floor / N a row's beta is unstable at N steps per mesh period
         self._set_floor(slice(None))
         self._pc_buf = np.zeros((1, cfg.periods_per_step, K.N_PC))
         self._st_buf = np.zeros((1, K.N_STATS))
@@ -240,35 +251,77 @@ class GearSpeedCore:
         cfg = self.config
         if cfg.tol is not None:
             return self._integrate_tol(rows, w0, w1, periods)
+        if not self.auto:
+            return self._integrate_n(rows, w0, w1, periods, cfg.steps_per_period)
+        ns = self.n_steps[rows]
+        n0 = int(ns[0])
+        if len(rows) == 1 or bool((ns == n0).all()):
+            out = self._integrate_n(rows, w0, w1, periods, n0)
+        else:  # one batch per step count (at most three)
+            m = len(rows)
+            out = (np.zeros((m, periods, K.N_PC)), np.zeros((m, K.N_STATS)), np.zeros(m, bool), np.zeros(m))
+            w0, w1 = np.asarray(w0, float), np.asarray(w1, float)
+            for n_ in np.unique(ns):
+                sel = np.flatnonzero(ns == n_)
+                for whole, part in zip(out, self._integrate_n(rows[sel], w0[sel], w1[sel], periods, int(n_))):
+                    whole[sel] = part
+        self._next_steps(rows, out[0], out[1], out[2])
+        return out
+
+    def _integrate_n(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int, nsp: int):
+        """:meth:`_integrate` with ``nsp`` steps per mesh period for every row of ``rows``."""
         if self.conditional:
-            return self._integrate_stable(rows, w0, w1, periods)
-        return self._integrate_fixed(rows, w0, w1, periods, cfg.steps_per_period)
+            return self._integrate_stable(rows, w0, w1, periods, nsp)
+        return self._integrate_fixed(rows, w0, w1, periods, nsp)
+
+    def _next_steps(self, rows: np.ndarray, pc: np.ndarray, st: np.ndarray, ok: np.ndarray) -> None:
+        """``steps_per_period="auto"``: each row's steps per mesh period for its next interval, from its contact
+        loss (time out of drive-side contact) in the interval just integrated and whether its last Poincare
+        samples repeat (period 1 within :data:`AUTO_PERIODIC_DEFECT`): :func:`~gear_env.sim.integration.contact_steps`
+        for Fox-Goodwin's beta, else 64. A failed row keeps its count."""
+        k = min(pc.shape[1], AUTO_PERIODIC_SAMPLES)
+        if len(rows) == 1:  # plain floats (the single env)
+            r = int(rows[0])
+            if ok[0]:
+                if self.beta[r] != FOX_GOODWIN_BETA:
+                    self.n_steps[r] = AUTO_OTHER_STEPS
+                    return
+                sep = float(st[0, K.ST_SEP_TIME] + st[0, K.ST_BACK_TIME]) / max(float(st[0, K.ST_TIME]), 1e-300)
+                p = pc[0, -k:, : K.NSTATE]
+                periodic = k > 1 and float(np.abs(p[1:] - p[:-1]).max()) <= AUTO_PERIODIC_DEFECT
+                self.n_steps[r] = contact_steps(sep, periodic)
+            return
+        good = rows[ok]
+        sep = (st[ok, K.ST_SEP_TIME] + st[ok, K.ST_BACK_TIME]) / np.maximum(st[ok, K.ST_TIME], 1e-300)
+        p = pc[ok][:, -k:, : K.NSTATE]
+        periodic = (np.abs(p[:, 1:] - p[:, :-1]).max(axis=(1, 2), initial=0.0) <= AUTO_PERIODIC_DEFECT) & (k > 1)
+        n = contact_steps(sep, periodic)
+        self.n_steps[good] = np.where(self.beta[good] == FOX_GOODWIN_BETA, n, AUTO_OTHER_STEPS)
 
     def _set_floor(self, r: int | slice) -> None:
-        """``w_floor`` of rows ``r``: the omega below which :func:`~gear_env.sim.linear.stable_betas` moves their
-        beta at ``steps_per_period`` (0 for the paper's beta), and the flag that any row may need it."""
+        """``w_floor`` of rows ``r``: N times the omega below which :func:`~gear_env.sim.linear.stable_betas` moves
+        their beta at N steps per mesh period (0 for the paper's beta), and the flag that any row may need it."""
         b = np.minimum(self.beta[r], 0.25 - 1e-300)
         self.w_floor[r] = np.where(
             self.w_stab[r] > 0,
-            (2.0 * math.pi / self.config.steps_per_period) * self.w_stab[r] * np.sqrt((0.25 - b) / (1.0 - 1e-9)),
+            (2.0 * math.pi) * self.w_stab[r] * np.sqrt((0.25 - b) / (1.0 - 1e-9)),
             0.0,
         )
         self.conditional = bool((self.w_floor > 0).any())
 
-    def _integrate_stable(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int):
+    def _integrate_stable(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int, nsp: int):
         """:meth:`_integrate` under a conditionally stable Newmark beta (``params.newmark_beta`` < 1/4): every
         row keeps ``steps_per_period``; a row whose interval reaches below its ``w_floor`` (where that beta is
         unstable at this step count) takes, for this interval, the beta closest to its own that is stable there
         (:func:`gear_env.sim.linear.stable_betas`, towards the paper's 1/4). The cost per step stays that of
         the fixed count, all rows are stepped together, and a row's beta depends only on its own interval (so
         single and vector env agree bit for bit)."""
-        nsp = self.config.steps_per_period
         if len(rows) == 1:  # the single env: plain floats
-            if min(float(w0[0]), float(w1[0])) >= self.w_floor[rows[0]]:
+            if min(float(w0[0]), float(w1[0])) >= self.w_floor[rows[0]] / nsp:
                 return self._integrate_fixed(rows, w0, w1, periods, nsp)
             moved = np.ones(1, bool)
         else:
-            moved = np.minimum(w0, w1) < self.w_floor[rows]
+            moved = np.minimum(w0, w1) < self.w_floor[rows] / nsp
             if not moved.any():
                 return self._integrate_fixed(rows, w0, w1, periods, nsp)
         mr = rows[moved]
@@ -458,6 +511,8 @@ class GearSpeedCore:
             self._pending[:, rows] = 0.0 if cfg.action_mode == "delta" else hold
         self.hist[rows] = 0.0
         self.n_tol[rows] = TOL_N_START  # with `tol`: a fresh episode starts from the same step count
+        if self.auto:
+            self.n_steps[rows] = AUTO_FIRST_STEPS  # and with "auto"
         pps = cfg.periods_per_step
         pre = cfg.warmup_total - pps
         ok_all = np.ones(len(rows), bool)

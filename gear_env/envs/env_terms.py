@@ -291,6 +291,17 @@ def _max_domega(label: str, v: Any, cfg: Any) -> float:
     return check_real(label, v, 0.0, cfg.omega_max - cfg.omega_min, lo_open=True)
 
 
+def _steps(label: str, v: Any, cfg: Any) -> int | str:
+    """An integer in [16, 1024], or "auto": with Fox-Goodwin's beta 48, 64 or 80 steps per mesh period per
+    sub-environment by the contact loss of its previous interval (``gear_env.sim.integration.contact_steps``, the
+    rule calibrated for that scheme), with any other beta 64 (the tasks' count)."""
+    if isinstance(v, str) and v == "auto":
+        return "auto"
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 16 <= v <= 1024:
+        raise ValueError(f'{label} must be an integer in [16, 1024] or "auto", got {v!r}')
+    return int(v)
+
+
 def _tol(label: str, v: Any, cfg: Any) -> float | None:
     """None (fixed steps) or the error per mesh period in b0 units, in [1e-8, 0.1]."""
     from ..sim.params import NEWMARK_BETA  # lazy: keeps this module free of numba
@@ -516,10 +527,12 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("params", None, _params, "`GearParams` or dict", "physical parameters (SI); the torques must give a "
             "static mesh force >= 1e-6 N (features are relative to it)", shown="Table 1"),
     Setting("model", "dynamic", choice(*BACKLASH_MODELS), '"dynamic", "constant"', "backlash model"),
-    Setting("steps_per_period", 64, integer(16, 1024), "[16, 1024]",
+    Setting("steps_per_period", 64, _steps, '[16, 1024], "auto"',
             "Newmark steps per mesh period (with `params.newmark_beta` < 1/4, kept: where omega is too low for that "
             "beta at this count, the sub-environment takes the nearest stable beta for that step, "
-            "`gear_env.sim.linear.stable_beta`)"),
+            '`gear_env.sim.linear.stable_beta`); "auto": with beta 1/12, 48, 64 or 80 per sub-environment and step '
+            "by its contact loss (time out of drive-side contact) in the step before (<= 0.2, <= 0.5, more; 80 only "
+            "for period-1 motion; `gear_env.sim.integration.contact_steps`), with any other beta 64"),
     Setting("tol", None, _tol, "None, [1e-8, 0.1]",
             "error per mesh period (b0 units) instead of `steps_per_period`: every mesh period integrated with "
             "contact changes located and N, 2N steps Richardson-extrapolated, N chosen per period "

@@ -325,7 +325,9 @@ TASK_SETTINGS: dict[str, dict[str, Any]] = {
     "GearSpeedDemandHard-v0": DEMAND_HARD_SETTINGS,
 }
 """Registered tasks and their settings (``gym.make(ID)`` uses these; keywords override them)."""
-TASK_SETTINGS.update({new: {**TASK_SETTINGS[old], "scheme": "fox-goodwin"} for new, old in FOX_GOODWIN_TASKS.items()})
+FOX_GOODWIN_SETTINGS: dict[str, Any] = {"scheme": "fox-goodwin"}
+"""What a Fox-Goodwin task adds to the settings of the task it integrates differently."""
+TASK_SETTINGS.update({new: {**TASK_SETTINGS[old], **FOX_GOODWIN_SETTINGS} for new, old in FOX_GOODWIN_TASKS.items()})
 
 
 def base_task(env_id: str) -> str:

@@ -61,6 +61,38 @@ class IntervalRun(NamedTuple):
     """With ``err_tol``: the coarse run's steps per mesh period chosen for the last period."""
 
 
+CONTACT_STEPS = (48, 64, 80)
+"""Steps per mesh period of :func:`contact_steps` (Fox-Goodwin): out of drive-side contact at most
+``CONTACT_SEPARATION[0]`` of the time, up to ``CONTACT_SEPARATION[1]``, more."""
+CONTACT_SEPARATION = (0.2, 0.5)
+"""Fractions of time out of drive-side contact that bound the classes of :data:`CONTACT_STEPS`."""
+
+
+def contact_steps(separation: Any, periodic: Any = True) -> Any:
+    """Steps per mesh period for Fox-Goodwin (Newmark beta 1/12) from the fraction of time out of drive-side
+    contact (teeth apart or in back-side contact: ``(stats[ST_SEP_TIME] + stats[ST_BACK_TIME]) / stats[ST_TIME]``
+    of the interval before, the environments' contact-loss feature; a number or an array): 48 up to 0.2, 64 up to
+    0.5, 80 above (:data:`CONTACT_STEPS`, :data:`CONTACT_SEPARATION`; NaN: 80). ``periodic`` False (a number or an
+    array): at most 64, because the rule was calibrated on period-1 orbits, and where the motion is not periodic
+    the trajectory error grows whatever the step (the environments' fixed count is kept there).
+
+    Why: Newmark's error is largest where the contact changes (a kink in the mesh force inside a step), so the
+    separated fraction sorts the period-1 orbits by the steps they need. On the 197 orbits of
+    ``benchmarks/bench_tolerance.py --omega-step 0.01`` (both models, omega 0.30-1.62) and 193 more at omega
+    0.305 + 0.01 k, never used to choose the classes, the rule keeps every orbit within 9.2e-4 b0 of the
+    event-located reference (p95 6.1e-4 / 5.8e-4) at 59.5 steps per period on average; 64 fixed steps leave 6 of
+    the 197 above 1e-3. On five pairs of the Demand tasks' plant family it leaves 8 of 296 orbits above 1e-3 (64
+    steps: 11): a worn, loaded pair needs more (``benchmarks/contact_steps.py``; docs/ENVIRONMENT.md, "Integration
+    accuracy"). Not calibrated for the paper's beta 1/4."""
+    a, b = CONTACT_SEPARATION
+    lo, mid, hi = CONTACT_STEPS
+    if np.ndim(separation) == 0 and np.ndim(periodic) == 0:
+        f = float(separation)
+        return lo if f <= a else mid if (f <= b or not periodic) else hi
+    fa = np.asarray(separation, float)
+    return np.where(fa <= a, lo, np.where((fa <= b) | ~np.asarray(periodic, bool), mid, hi)).astype(np.int64)
+
+
 _TABLES: dict[tuple[int, bytes], np.ndarray] = {}
 """Excitation tables of the one-state driver, by (steps per period, constants); at most ``_MAX_TABLES``."""
 _MAX_TABLES = 64

@@ -1,0 +1,100 @@
+"""How well ``steps_per_period="auto"`` (the contact rule, ``gear_env.sim.integration.contact_steps``) bounds the
+error of Fox-Goodwin's Newmark steps, against fixed 64 steps, on period-1 orbits and an event-located reference.
+
+    python benchmarks/contact_steps.py             # the three sets below, about 4 minutes on 2 cores
+    python benchmarks/contact_steps.py --sets fresh family
+
+Sets (both backlash models, period-1 orbits only: the reference's last two Poincare points agree to 1e-5):
+
+* ``tuning``: the Table 1 pair at omega 0.30 + 0.01 k (``bench_tolerance.py --omega-step 0.01``), the orbits the
+  rule's classes were chosen on;
+* ``fresh``: the Table 1 pair at omega 0.305 + 0.01 k, never used for a choice;
+* ``family``: five pairs of GearSpeedDemand's plant family (load x0.4-1.5, transmission error x0.25-2, the
+  corners and one inside) at omega 0.307 + 0.04 k, never used for a choice.
+
+Per orbit: the largest difference of 10 Poincare points from ``gear_env.sim.reference.reference_poincare`` after
+starting on the orbit, at 64 fixed steps and at the rule's count (from the orbit's contact loss at 64 steps). The
+rule's cost is its mean count over the orbits (the environments' cost is measured by ``env_tol.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+SETS = ("tuning", "fresh", "family")
+FAMILY = ((0.4, 0.25), (0.4, 2.0), (1.5, 0.25), (1.5, 2.0), (0.6, 1.0))  # (load x duty, e_m1 factor)
+
+
+def orbits(params, omegas) -> list[tuple[str, float, np.ndarray, np.ndarray]]:
+    """(model, omega, start state, reference Poincare points) of the period-1 orbits of ``params``."""
+    from gear_env import GearSimulator
+    from gear_env.sim.reference import reference_poincare
+
+    out = []
+    for model in ("constant", "dynamic"):
+        for w in omegas:
+            sim = GearSimulator(params, model, 512, float(w))
+            sim.advance(300)
+            ref = reference_poincare(float(w), model, params, 0, 10, initial_state=sim.state).states
+            if np.max(np.abs(ref[-1] - ref[-2])) <= 1e-5 * (1 + np.max(np.abs(ref[-1]))):
+                out.append((model, float(w), sim.state, ref))
+    return out
+
+
+def errors(params, cases) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per orbit: error at 64 fixed Fox-Goodwin steps, error at the rule's count, the rule's count."""
+    from gear_env import GearSimulator
+    from gear_env.sim.integration import contact_steps
+
+    fg = params.replace(newmark_beta=1.0 / 12.0)
+    e64, er, ns = [], [], []
+    for model, w, x0, ref in cases:
+        iv = GearSimulator(fg, model, 64, w, x0).advance(10)
+        e64.append(float(np.max(np.abs(iv.poincare[:, :10] - ref))))
+        n = contact_steps(iv.separation_fraction)
+        ns.append(n)
+        iv_n = iv if n == 64 else GearSimulator(fg, model, n, w, x0).advance(10)
+        er.append(float(np.max(np.abs(iv_n.poincare[:, :10] - ref))))
+    return np.array(e64), np.array(er), np.array(ns)
+
+
+def line(name: str, e64: np.ndarray, er: np.ndarray, ns: np.ndarray) -> str:
+    def s(e: np.ndarray) -> str:
+        return f"{np.percentile(e, 95):.1e} / {e.max():.1e} | {(e > 1e-3).sum()}"
+
+    return f"| {name} | {len(e64)} | {s(e64)} | {s(er)} | {ns.mean():.1f} |"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sets", nargs="+", choices=SETS, default=list(SETS), help="orbit sets (default: all three)")
+    args = ap.parse_args(argv)
+    from gear_env import GearParams
+    from gear_env.envs.tasks import PlantFamily
+
+    print(
+        "| orbit set | orbits | 64 steps: p95 / max [b0] | > 1e-3 | rule: p95 / max [b0] | > 1e-3 | rule: mean steps |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    base = GearParams()
+    for name in args.sets:
+        if name in ("tuning", "fresh"):
+            start = 0.30 if name == "tuning" else 0.305
+            omegas = np.round(np.arange(start, 3.0 + 1e-9, 0.01), 6)
+            print(line(f"Table 1 pair, {name}", *errors(base, orbits(base, omegas))), flush=True)
+            continue
+        omegas = np.round(np.arange(0.307, 2.4, 0.04), 6)
+        total = [np.zeros(0), np.zeros(0), np.zeros(0)]
+        for load, te in FAMILY:
+            p = PlantFamily.plant(base, {"load": load, "e_m1": te}, 1.0)
+            res = errors(p, orbits(p, omegas))
+            print(line(f"family: load x{load:g}, e_m1 x{te:g}", *res), flush=True)
+            total = [np.concatenate([a, b]) for a, b in zip(total, res)]
+        print(line("family, all five", *total), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
