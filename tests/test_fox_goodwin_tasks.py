@@ -69,8 +69,26 @@ def test_the_scheme_wins_over_the_beta_of_a_passed_pair():
 
 @pytest.mark.parametrize("bad", ["fox_goodwin", "Paper", 1, True])
 def test_a_bad_scheme_is_refused_naming_the_field_and_the_choices(bad):
-    with pytest.raises(ValueError, match=r"scheme must be one of \['paper', 'fox-goodwin'\]"):
+    with pytest.raises(ValueError, match=r"scheme must be None or one of \['paper', 'fox-goodwin'\]"):
         task_config("GearSpeed-v2", {"scheme": bad})
+
+
+def test_a_params_dict_naming_another_beta_than_the_scheme_is_refused():
+    """A config file's params.newmark_beta on a Fox-Goodwin id would otherwise be dropped without a word."""
+    for beta in (0.25, 1 / 6):
+        with pytest.raises(ValueError, match=r"params.newmark_beta = .* conflicts with scheme='fox-goodwin'"):
+            task_config("GearSpeedDemand-v1", {"params": {"newmark_beta": beta}})
+    # the same beta as the scheme's, the scheme changed with it, or no scheme: accepted
+    assert task_config("GearSpeedDemand-v1", {"params": {"newmark_beta": 0.0833333}}).params.newmark_beta == 1 / 12
+    cfg = task_config("GearSpeedDemand-v1", {"params": {"newmark_beta": 0.25}, "scheme": "paper"})
+    assert cfg.params.newmark_beta == 0.25
+    assert (
+        task_config("GearSpeedDemand-v1", {"params": {"newmark_beta": 0.2}, "scheme": None}).params.newmark_beta == 0.2
+    )
+    # a config's own dict round-trips, and a changed scheme is taken over a GearParams (documented)
+    cfg = task_config("GearSpeedDemand-v1")
+    assert type(cfg).from_kwargs(cfg.to_dict()) == cfg
+    assert cfg.replace(scheme="paper").params.newmark_beta == 0.25
 
 
 def test_tol_on_a_fox_goodwin_task_names_the_scheme():

@@ -1,4 +1,4 @@
-"""``gear-env train`` and ``python train.py``: the command line of PPO training on GearSpeed-v0.
+"""``gear-env train`` and ``python train.py``: the command line of PPO training on the gear tasks.
 
 Argument parsing lives here; the training itself is :func:`agents.ppo.train` (see docs/TRAINING.md).
 """
@@ -22,7 +22,8 @@ DEFAULT_NUM_ENVS = 16
 DEFAULT_EVAL_EPISODES = 16  # agents.ppo.TrainOptions.eval_episodes
 
 DESCRIPTION = (
-    "Train SB3 PPO on GearSpeed-v0 (vector env, VecNormalize, checkpoints, --resume). Writes a run folder: "
+    "Train SB3 PPO on a gear task (default GearSpeed-v1; vector env, VecNormalize, checkpoints, --resume). Writes "
+    "a run folder: "
     "model.zip, vecnormalize.npz, config.json, metrics.csv/json, checkpoints/. Nothing in a run folder is "
     "unpickled when it is loaded (docs/TRAINING.md)."
 )
@@ -267,7 +268,7 @@ def run(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     """The parser of ``python train.py`` (the same options as ``gear-env train``)."""
     p = argparse.ArgumentParser(
-        prog="train.py", description="Train a PPO speed-scheduling agent on GearSpeed-v0 (same as `gear-env train`)."
+        prog="train.py", description="Train a PPO speed-scheduling agent on a gear task (same as `gear-env train`)."
     )
     add_arguments(p)
     return p

@@ -257,7 +257,11 @@ def scheme_beta(scheme: str) -> float:
 
 
 def _scheme(label: str, v: Any, cfg: Any) -> str | None:
-    return None if v is None else check_choice(label, v, SCHEMES)
+    if v is None:
+        return None
+    if not isinstance(v, str) or v not in SCHEMES:
+        raise ValueError(f"{label} must be None or one of {list(SCHEMES)}, got {v!r}")
+    return v
 
 
 def _params(label: str, v: Any, cfg: Any) -> Any:
@@ -266,7 +270,14 @@ def _params(label: str, v: Any, cfg: Any) -> Any:
     if v is None:
         v = GearParams()
     elif isinstance(v, Mapping):
-        v = GearParams.from_dict(dict(v))
+        given = dict(v)
+        v = GearParams.from_dict(given)
+        if cfg.scheme is not None and "newmark_beta" in given and v.newmark_beta != scheme_beta(cfg.scheme):
+            raise ValueError(
+                f"{label}.newmark_beta = {v.newmark_beta:.6g} conflicts with scheme={cfg.scheme!r} (beta "
+                f'{scheme_beta(cfg.scheme):.6g}; the Fox-Goodwin ids set it): pass scheme="paper" or '
+                f'scheme="fox-goodwin" instead, or scheme=None to take params.newmark_beta as given'
+            )
     elif not isinstance(v, GearParams):
         raise ValueError(f"{label} must be a GearParams, a dict of its fields or None, got {v!r}")
     if cfg.scheme is not None and v.newmark_beta != scheme_beta(cfg.scheme):
@@ -523,7 +534,8 @@ SETTINGS: tuple[Setting, ...] = (
     # physics
     Setting("scheme", None, _scheme, 'None, "paper", "fox-goodwin"',
             "Newmark scheme: sets `params.newmark_beta` to 1/4 (paper) or 1/12 (fox-goodwin, the same cost per step "
-            "and 4-5x less error at 64 steps; the v2/v1 tasks' default); None: `params.newmark_beta` as given"),
+            "and 6x less error at 64 steps; the Fox-Goodwin ids' setting), over the beta of a `GearParams` passed "
+            "in `params` (a dict that names another beta is refused); None: `params.newmark_beta` as given"),
     Setting("params", None, _params, "`GearParams` or dict", "physical parameters (SI); the torques must give a "
             "static mesh force >= 1e-6 N (features are relative to it)", shown="Table 1"),
     Setting("model", "dynamic", choice(*BACKLASH_MODELS), '"dynamic", "constant"', "backlash model"),
