@@ -213,3 +213,36 @@ def test_contact_steps_bring_the_orbits_64_steps_miss_within_1e_3(omega, model):
     n = contact_steps(sep)
     err[n] = float(np.max(np.abs(GearSimulator(fg, model, n, omega, x0).advance(10).poincare[:, :10] - ref)))
     assert n == 80 and err[64] > 1e-3 and err[80] < 1e-3, (sep, err)
+
+
+def _demand_protocol():
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from demand_protocol import main
+
+    return main
+
+
+def test_demand_protocol_refuses_before_any_rollout(capsys):
+    """--against-base needs a Fox-Goodwin id; a task without a shipped policy is refused before any rollout
+    when the default policies include it (it failed after five rollouts)."""
+    main = _demand_protocol()
+    with pytest.raises(ValueError, match="no pretrained policy is shipped for 'GearSpeedDemandLimit-v1'"):
+        main(["--env", "GearSpeedDemandLimit-v1", "--set", "seeds:800000-800001"])
+    with pytest.raises(SystemExit):
+        main(["--env", "GearSpeedDemand-v0", "--set", "seeds:800000-800001", "--against-base"])
+    assert "--against-base compares" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_demand_protocol_against_base_pairs_the_new_id_with_the_older(capsys):
+    """demand_protocol --against-base: the change table pairs each policy on a Fox-Goodwin id with the same
+    policy on the older id (about a minute with an empty map cache: the oracle's maps of both schemes)."""
+    main = _demand_protocol()
+    argv = ["--env", "GearSpeedDemand-v1", "--set", "seeds:800000-800001", "--policy", "sensor-servo"]
+    assert main([*argv, "--reference", "sensor-servo", "--against-base"]) == 0
+    out = capsys.readouterr().out
+    assert "| policy | return, GearSpeedDemand-v0 | return, GearSpeedDemand-v1 | paired change" in out
+    assert "| sensor-servo |" in out
