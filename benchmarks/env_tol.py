@@ -12,14 +12,14 @@ the cost the CPU time of the steps (the settings interleaved per seed, so drift 
     python benchmarks/env_tol.py --vector 16 --rounds 5   # also the vector env's env-steps/s, Fox-Goodwin vs 64 steps
 
 The Fox-Goodwin settings are ``params={"newmark_beta": 1/12}`` (``GearParams.newmark_beta``), at 64 and 96 steps,
-and with ``steps_per_period="auto"`` (48, 64 or 80 steps by the contact loss of the step before: the Fox-Goodwin
-ids' setting).
+and with ``steps_per_period="auto"`` (48, 64 or 80 steps by the contact loss of the step before; opt-in, the
+Fox-Goodwin ids keep 64).
 
     python benchmarks/env_tol.py --task-cost 20 --policy pretrained   # the cost on the task as a policy runs it
 
 ``--task-cost N`` runs N episodes of ``--policy`` on the task, on its Fox-Goodwin id (``GearSpeedDemand-v1`` for
 ``GearSpeedDemand-v0``) and on that id with ``steps_per_period="auto"``, interleaved per episode, and prints the CPU
-ratios and the auto run's mean steps per mesh period.
+ratios and the auto run's mean steps per mesh period (the counts chosen for steps 2 to the last of each episode).
 
 ``--json FILE`` writes the run's record (benchmarks/bench_record.py; benchmarks/make_tables.py reads it).
 """
@@ -95,7 +95,7 @@ def task_cost(env_id: str, spec: str, episodes: int, rec) -> None:
     from gear_env.envs.tasks import FOX_GOODWIN_TASKS
     from gear_env.evaluation.episodes import run_episode
 
-    fg_id = {old: new for new, old in FOX_GOODWIN_TASKS.items()}[env_id]
+    fg_id = {old: new for new, old in FOX_GOODWIN_TASKS.items()}[env_id]  # main checked it
     runs = {env_id: (env_id, {}), fg_id: (fg_id, {}), f"{fg_id}, auto steps": (fg_id, {"steps_per_period": "auto"})}
     cpu = dict.fromkeys(runs, 0.0)
     counts: list[int] = []
@@ -106,10 +106,12 @@ def task_cost(env_id: str, spec: str, episodes: int, rec) -> None:
             env = gym.make(tid, **kw)
             pol = resolve_policy(spec, task_config(tid, kw), env_id=tid)
             core = env.unwrapped._core
-            count = (lambda info, core=core: counts.append(int(core.n_steps[0]))) if kw else None
+            mine: list[int] = []
+            count = (lambda info, core=core, mine=mine: mine.append(int(core.n_steps[0]))) if kw else None
             t0 = time.process_time()
             run_episode(env, pol, 800000 + ep, count)
             cpu[name] += time.process_time() - t0
+            counts += mine[:-1]  # the last is the count of a step that is not taken
     print(f"\n{spec} on {episodes} episodes (seeds 800000-), CPU against {env_id}:")
     for name in runs:
         print(f"  {name}: {cpu[name] / cpu[env_id]:.2f}x")
@@ -137,6 +139,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--settings", nargs="+", metavar="NAME", choices=list(SETTINGS), default=list(SETTINGS),
                     help="only these settings (the 64-step default always runs: ratios are against it)")  # fmt: skip
     args = ap.parse_args(argv)
+    from gear_env.envs.tasks import FOX_GOODWIN_TASKS
+
+    if args.task_cost and args.env not in FOX_GOODWIN_TASKS.values():
+        ap.error(
+            f"--task-cost compares a task with its Fox-Goodwin id: --env one of {sorted(FOX_GOODWIN_TASKS.values())}"
+        )
     settings = {k: v for k, v in SETTINGS.items() if k in args.settings or k == "64 steps (default)"}
     from bench_record import Record, check_json_target
 

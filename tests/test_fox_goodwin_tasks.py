@@ -246,3 +246,37 @@ def test_demand_protocol_against_base_pairs_the_new_id_with_the_older(capsys):
     out = capsys.readouterr().out
     assert "| policy | return, GearSpeedDemand-v0 | return, GearSpeedDemand-v1 | paired change" in out
     assert "| sensor-servo |" in out
+
+
+def test_scheme_none_stays_out_of_the_config_dict():
+    """Run folders written before the setting existed have no "scheme": their configs still compare equal (a
+    --resume check), and an older id's config file carries no scheme null over a Fox-Goodwin id's scheme."""
+    d = task_config("GearSpeedDemand-v0").to_dict()
+    assert "scheme" not in d
+    assert type(task_config("GearSpeedDemand-v0")).from_kwargs(d) == task_config("GearSpeedDemand-v0")
+    assert task_config("GearSpeedDemand-v1").to_dict()["scheme"] == "fox-goodwin"
+    assert task_config("GearSpeedDemand-v1", d).params.newmark_beta == FOX_GOODWIN_BETA
+
+
+def test_auto_steps_survive_an_empty_reset_mask_and_keep_64_below_the_stable_omega(monkeypatch):
+    from gear_env.envs.env_core import GearSpeedCore
+
+    kw = dict(SHORT, steps_per_period="auto", action_mode="target")
+    venv = gym.make_vec("GearSpeed-v2", num_envs=2, vectorization_mode="vector_entry_point", **kw)
+    venv.reset(seed=[1, 2])
+    venv.reset(options={"reset_mask": np.zeros(2, bool)})  # no rows: nothing to integrate
+    seen = []
+    real = GearSpeedCore._integrate_n
+
+    def spy(self, rows, w0, w1, periods, nsp):
+        seen.append((float(np.min(np.minimum(w0, w1))) if len(rows) else 9.0, nsp))
+        return real(self, rows, w0, w1, periods, nsp)
+
+    monkeypatch.setattr(GearSpeedCore, "_integrate_n", spy)
+    env = gym.make("GearSpeed-v2", initial_omega=0.12, **kw)
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(np.array([-1.0], np.float32))  # stay at the bottom of the range, where 48 steps are unstable
+    floor48 = env.unwrapped._core.w_floor[0] / 48
+    assert env.unwrapped._core.n_steps[0] == 48  # the rule asks for 48 (little contact loss) ...
+    assert floor48 > 0.12 and seen and all(n >= 64 for w, n in seen if w < floor48), seen  # ... 64 are taken

@@ -69,10 +69,14 @@ class TableConfig:
         return type(self).from_kwargs(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (``params`` as a dict of SI values)."""
+        """JSON-ready dict (``params`` as a dict of SI values). A setting of :data:`OMITTED_AT_NONE` is left out while
+        None, so that a run folder's config written before it existed compares equal, and a config file of an older
+        id does not carry a ``scheme: null`` over a Fox-Goodwin id's scheme."""
         out: dict[str, Any] = {}
         for name in self.field_names():
             v = getattr(self, name)
+            if v is None and name in OMITTED_AT_NONE:
+                continue
             if isinstance(v, GearParams) or hasattr(v, "to_dict"):  # GearParams, PlantFamily, DutyCycle
                 v = v.to_dict()
             elif isinstance(v, tuple):
@@ -89,6 +93,10 @@ class TableConfig:
         if not isinstance(data, dict):
             raise ValueError(f"config file {path!r} must hold a JSON object of settings")
         return cls.from_kwargs(data)
+
+
+OMITTED_AT_NONE = frozenset({"scheme"})
+"""Settings that :meth:`TableConfig.to_dict` leaves out while None."""
 
 
 def table_config(task_id: str) -> Callable[[type[_C]], type[_C]]:
@@ -124,7 +132,11 @@ class GearSpeedConfig(TableConfig):
         params: :class:`GearParams` or a dict of its fields (SI units); default Table 1.
         model: backlash model, ``"dynamic"`` (default) or ``"constant"``.
         steps_per_period: Newmark steps per mesh period, in [16, 1024]; default 64 (the env's fast
-            preset, same regime boundaries as the simulator's 128; see docs/ENVIRONMENT.md).
+            preset, same regime boundaries as the simulator's 128; see docs/ENVIRONMENT.md); or ``"auto"``: with
+            Fox-Goodwin's beta 48, 64 or 80 per sub-environment and step by its contact loss in the step before
+            (``gear_env.sim.integration.contact_steps``), with any other beta 64.
+        scheme: None (``params.newmark_beta`` as given), ``"paper"`` (beta 1/4) or ``"fox-goodwin"`` (beta 1/12, the
+            Fox-Goodwin ids' setting): sets ``params.newmark_beta``.
         tol: None (default: fixed steps) or the error per mesh period in b0 units, in [1e-8, 0.1]:
             every mesh period is then integrated with contact changes located and Richardson-extrapolated
             N and 2N steps, N chosen per period per system (as ``GearSimulator(tol=)``);

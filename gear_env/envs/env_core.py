@@ -253,7 +253,12 @@ class GearSpeedCore:
             return self._integrate_tol(rows, w0, w1, periods)
         if not self.auto:
             return self._integrate_n(rows, w0, w1, periods, cfg.steps_per_period)
+        if len(rows) == 0:
+            return self._integrate_n(rows, w0, w1, periods, AUTO_OTHER_STEPS)
         ns = self.n_steps[rows]
+        if self.conditional:  # below the scheme's stable omega at the row's count: no fewer than 64 (see _next_steps)
+            low = np.minimum(np.asarray(w0, float), np.asarray(w1, float)) < self.w_floor[rows] / ns
+            ns = np.where(low & (ns < AUTO_OTHER_STEPS), AUTO_OTHER_STEPS, ns)
         n0 = int(ns[0])
         if len(rows) == 1 or bool((ns == n0).all()):
             out = self._integrate_n(rows, w0, w1, periods, n0)
@@ -278,7 +283,9 @@ class GearSpeedCore:
         """``steps_per_period="auto"``: each row's steps per mesh period for its next interval, from its contact
         loss (time out of drive-side contact) in the interval just integrated and whether its last Poincare
         samples repeat (period 1 within :data:`AUTO_PERIODIC_DEFECT`): :func:`~gear_env.sim.integration.contact_steps`
-        for Fox-Goodwin's beta, else 64. A failed row keeps its count."""
+        for Fox-Goodwin's beta, else 64. A failed row keeps its count. (:meth:`_integrate` raises a count below 64
+        to 64 for an interval that reaches below the beta's stable omega at that count, about 0.21 at 48 steps, so
+        that the row keeps its beta there as at the tasks' 64 steps.)"""
         k = min(pc.shape[1], AUTO_PERIODIC_SAMPLES)
         if len(rows) == 1:  # plain floats (the single env)
             r = int(rows[0])
@@ -311,7 +318,7 @@ class GearSpeedCore:
 
     def _integrate_stable(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int, nsp: int):
         """:meth:`_integrate` under a conditionally stable Newmark beta (``params.newmark_beta`` < 1/4): every
-        row keeps ``steps_per_period``; a row whose interval reaches below its ``w_floor`` (where that beta is
+        row keeps ``nsp`` steps; a row whose interval reaches below its ``w_floor / nsp`` (where that beta is
         unstable at this step count) takes, for this interval, the beta closest to its own that is stable there
         (:func:`gear_env.sim.linear.stable_betas`, towards the paper's 1/4). The cost per step stays that of
         the fixed count, all rows are stepped together, and a row's beta depends only on its own interval (so

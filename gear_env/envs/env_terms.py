@@ -275,8 +275,9 @@ def _params(label: str, v: Any, cfg: Any) -> Any:
         if cfg.scheme is not None and "newmark_beta" in given and v.newmark_beta != scheme_beta(cfg.scheme):
             raise ValueError(
                 f"{label}.newmark_beta = {v.newmark_beta:.6g} conflicts with scheme={cfg.scheme!r} (beta "
-                f'{scheme_beta(cfg.scheme):.6g}; the Fox-Goodwin ids set it): pass scheme="paper" or '
-                f'scheme="fox-goodwin" instead, or scheme=None to take params.newmark_beta as given'
+                f"{scheme_beta(cfg.scheme):.6g}; the Fox-Goodwin ids set it): leave newmark_beta out of params or "
+                'give the scheme\'s, choose the beta by scheme ("paper", "fox-goodwin"), or pass scheme=None to take '
+                "params.newmark_beta as given"
             )
     elif not isinstance(v, GearParams):
         raise ValueError(f"{label} must be a GearParams, a dict of its fields or None, got {v!r}")

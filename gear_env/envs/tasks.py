@@ -314,9 +314,9 @@ FOX_GOODWIN_TASKS: dict[str, str] = {
     "GearSpeedDemandHard-v1": "GearSpeedDemandHard-v0",
 }
 """The tasks integrated with Fox-Goodwin's Newmark beta (1/12; ``scheme="fox-goodwin"``) and the task each one is
-otherwise equal to: the same settings, spaces, rewards and cost per step, 6x less integration error (every return
-rises by 0.03-0.17 and no ranking changes; docs/ENVIRONMENT.md). A new id, not a changed one, because the
-dynamics differ (Gymnasium's versioning rule): every published number of the older ids stays valid."""
+otherwise equal to: the same settings, spaces, rewards and cost per step, 6x less integration error (on the Demand
+ids every return rises by 0.03-0.17, and no ranking changes; docs/ENVIRONMENT.md). A new id, not a changed one,
+because the dynamics differ (Gymnasium's versioning rule): every published number of the older ids stays valid."""
 TASK_SETTINGS: dict[str, dict[str, Any]] = {
     "GearSpeed-v0": {},
     "GearSpeed-v1": V1_SETTINGS,

@@ -73,8 +73,8 @@ def contact_steps(separation: Any, periodic: Any = True) -> Any:
     contact (teeth apart or in back-side contact: ``(stats[ST_SEP_TIME] + stats[ST_BACK_TIME]) / stats[ST_TIME]``
     of the interval before, the environments' contact-loss feature; a number or an array): 48 up to 0.2, 64 up to
     0.5, 80 above (:data:`CONTACT_STEPS`, :data:`CONTACT_SEPARATION`; NaN: 80). ``periodic`` False (a number or an
-    array): at most 64, because the rule was calibrated on period-1 orbits, and where the motion is not periodic
-    the trajectory error grows whatever the step (the environments' fixed count is kept there).
+    array): 64 in place of 80, because the rule was calibrated on period-1 orbits, and where the motion is not
+    periodic the trajectory error grows whatever the step.
 
     Why: Newmark's error is largest where the contact changes (a kink in the mesh force inside a step), so the
     separated fraction sorts the period-1 orbits by the steps they need. On the 197 orbits of
