@@ -131,6 +131,7 @@ def test_determinism_and_checkers():
     assert all(np.array_equal(x, y) for x, y in zip(a, b))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
+        warnings.filterwarnings("ignore", message=".*is out of date.*")  # Gymnasium's notice: GearSpeedDemand-v1 exists
         check_env(gym.make("GearSpeedDemand-v0", memory_steps=8.0, **FAST).unwrapped)
         sb3_check_env(GearSpeedEnv(config=task_config("GearSpeedDemand-v0", {"memory_steps": 8.0, **FAST})))
     assert [str(w.message) for w in caught] == []
