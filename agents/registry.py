@@ -130,6 +130,15 @@ def pretrained_dir(env_id: str = "GearSpeed-v0") -> Path:
     return Path(str(resources.files("gear_env") / "data" / "policies" / env_id))
 
 
+def shipped_policy_dir(env_id: str) -> Path:
+    """:func:`pretrained_dir` of a task other than GearSpeed-v0, checked: ``ValueError`` if no policy is shipped
+    for ``env_id`` (its folder has no ``policy.json``)."""
+    d = pretrained_dir(env_id)
+    if not (d / "policy.json").is_file():
+        raise ValueError(f"no pretrained policy is shipped for {env_id!r} ({str(d)!r} has no policy.json)")
+    return d
+
+
 class RandomPolicy(BasePolicy):
     """Uniform random actions in [-1, 1] (seeded; ``deterministic`` is ignored)."""
 
@@ -265,9 +274,7 @@ def resolve_policy(spec: str, config: Any = None, env_id: str | None = None, all
     if s == "pretrained" and env_id not in (None, "GearSpeed-v0"):
         from .shipped import load_policy
 
-        d = pretrained_dir(env_id)
-        if not (d / "policy.json").is_file():
-            raise ValueError(f"no pretrained policy is shipped for {env_id!r} ({str(d)!r} has no policy.json)")
+        d = shipped_policy_dir(env_id)
         pol = load_policy(d, name="pretrained")
         if pol.env_id != base_task(env_id):
             raise ValueError(f"{str(d / 'policy.json')!r}: env_id: the policy is for {pol.env_id!r}, not {env_id!r}")
@@ -309,4 +316,4 @@ def _stored_config(run_dir: Path) -> Any:
     return RunFolder(run_dir).read_config()["env_config"]
 
 
-__all__ = ["NAMES", "RandomPolicy", "pretrained_dir", "resolve_policy", "trained_env_id"]
+__all__ = ["NAMES", "RandomPolicy", "pretrained_dir", "resolve_policy", "shipped_policy_dir", "trained_env_id"]

@@ -354,15 +354,15 @@ def _main(args: argparse.Namespace) -> int:
     specs = list(dict.fromkeys(["oracle", "fixed-best", *(args.policy or BASELINES[2:])]))
     runs = [str(Path(r) / "best_model.zip") if Path(r).is_dir() else r for r in args.runs]
     if "pretrained" in specs + runs:  # refused before any rollout, not after the others
-        from agents.registry import pretrained_dir
+        from agents.registry import shipped_policy_dir
 
-        d = pretrained_dir(env_id)
-        if env_id != "GearSpeed-v0" and not (d / "policy.json").is_file():
+        try:
+            shipped_policy_dir(env_id)  # the Demand tasks ship policy.json folders
+        except ValueError as exc:
             raise ValueError(
-                f"no pretrained policy is shipped for {env_id!r} ({str(d)!r} has no policy.json); name the "
-                "policies with --policy (for example --policy identify-follow --policy sensor-servo --reference "
-                "sensor-servo)"
-            )
+                f"{exc}; name the policies with --policy (for example --policy identify-follow --policy "
+                "sensor-servo --reference sensor-servo)"
+            ) from None
     t0 = time.perf_counter()
     where = args.set if args.set.startswith("seeds:") else f"{args.set} seeds {seeds.start}-{seeds.stop - 1}"
     print(f"{env_id}: {len(specs)} policies + {len(runs)} runs on {where}")

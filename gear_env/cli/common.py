@@ -86,9 +86,11 @@ def add_params_options(p: argparse.ArgumentParser) -> None:
         default=16,
         help="stiffness harmonics taken from --pair, 1-64 (default 16)",
     )
+    from ..sim.params import SCHEME_BETAS
+
     p.add_argument(
         "--scheme",
-        choices=("paper", "fox-goodwin"),
+        choices=tuple(SCHEME_BETAS),
         default=None,
         help="Newmark scheme: paper (beta 1/4, default, unconditionally stable) or fox-goodwin (beta 1/12: "
         "less error per step, stable above a step count that grows at low omega; GearParams.newmark_beta)",
@@ -97,16 +99,19 @@ def add_params_options(p: argparse.ArgumentParser) -> None:
 
 def scheme_text(params: Any) -> str:
     """The Newmark scheme of ``params`` for a command's printout: "paper (beta 1/4)", "fox-goodwin (beta 1/12)"."""
-    from ..sim.params import FOX_GOODWIN_BETA, NEWMARK_BETA
+    from fractions import Fraction
+
+    from ..sim.params import SCHEME_BETAS
 
     b = params.newmark_beta
-    return {NEWMARK_BETA: "paper (beta 1/4)", FOX_GOODWIN_BETA: "fox-goodwin (beta 1/12)"}.get(b, f"beta {b:.6g}")
+    names = {beta: name for name, beta in SCHEME_BETAS.items()}
+    return f"{names[b]} (beta {Fraction(b).limit_denominator(100)})" if b in names else f"beta {b:.6g}"
 
 
 def params_from_args(args: argparse.Namespace) -> Any:
     """The :class:`~gear_env.sim.params.GearParams` the parameter options describe (a ValueError names the field)."""
     from ..io import read_json
-    from ..sim.params import FOX_GOODWIN_BETA, NEWMARK_BETA, GearParams
+    from ..sim.params import SCHEME_BETAS, GearParams
 
     fields: dict[str, Any] = {}
     if getattr(args, "params", None):
@@ -121,7 +126,7 @@ def params_from_args(args: argparse.Namespace) -> Any:
     if scheme is not None:
         if "newmark_beta" in fields:
             raise ValueError("--scheme cannot be combined with newmark_beta in --params: give one of them")
-        fields["newmark_beta"] = FOX_GOODWIN_BETA if scheme == "fox-goodwin" else NEWMARK_BETA
+        fields["newmark_beta"] = SCHEME_BETAS[scheme]
     if getattr(args, "pair", None):
         from ..sim.geometry import SpurPair
 

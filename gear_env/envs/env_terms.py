@@ -245,44 +245,36 @@ THROUGHPUT_MODES = ("all", "delivered")
 BACKLASH_MODELS = ("constant", "dynamic")  # params.MODELS (checked by the config)
 
 
-SCHEMES = ("paper", "fox-goodwin")
-"""Values of the ``scheme`` setting (as ``gear-env simulate --scheme``): Newmark beta 1/4 and 1/12."""
-
-
-def scheme_beta(scheme: str) -> float:
-    """The Newmark beta of a ``scheme`` setting ("paper": 1/4, "fox-goodwin": 1/12)."""
-    from ..sim.params import FOX_GOODWIN_BETA, NEWMARK_BETA  # lazy: keeps this module free of numba
-
-    return FOX_GOODWIN_BETA if scheme == "fox-goodwin" else NEWMARK_BETA
-
-
 def _scheme(label: str, v: Any, cfg: Any) -> str | None:
+    from ..sim.params import SCHEME_BETAS  # lazy: keeps this module free of numba
+
     if v is None:
         return None
-    if not isinstance(v, str) or v not in SCHEMES:
-        raise ValueError(f"{label} must be None or one of {list(SCHEMES)}, got {v!r}")
+    if not isinstance(v, str) or v not in SCHEME_BETAS:
+        raise ValueError(f"{label} must be None or one of {list(SCHEME_BETAS)}, got {v!r}")
     return v
 
 
 def _params(label: str, v: Any, cfg: Any) -> Any:
-    from ..sim.params import C_FS, GearParams, refuse_extensions  # lazy: keeps this module free of numba
+    from ..sim.params import C_FS, SCHEME_BETAS, GearParams, refuse_extensions  # lazy: keeps this module free of numba
 
+    beta = None if cfg.scheme is None else SCHEME_BETAS[cfg.scheme]
     if v is None:
         v = GearParams()
     elif isinstance(v, Mapping):
         given = dict(v)
         v = GearParams.from_dict(given)
-        if cfg.scheme is not None and "newmark_beta" in given and v.newmark_beta != scheme_beta(cfg.scheme):
+        if beta is not None and "newmark_beta" in given and v.newmark_beta != beta:
             raise ValueError(
                 f"{label}.newmark_beta = {v.newmark_beta:.6g} conflicts with scheme={cfg.scheme!r} (beta "
-                f"{scheme_beta(cfg.scheme):.6g}; the Fox-Goodwin ids set it): leave newmark_beta out of params or "
+                f"{beta:.6g}; the Fox-Goodwin ids set it): leave newmark_beta out of params or "
                 'give the scheme\'s, choose the beta by scheme ("paper", "fox-goodwin"), or pass scheme=None to take '
                 "params.newmark_beta as given"
             )
     elif not isinstance(v, GearParams):
         raise ValueError(f"{label} must be a GearParams, a dict of its fields or None, got {v!r}")
-    if cfg.scheme is not None and v.newmark_beta != scheme_beta(cfg.scheme):
-        v = v.replace(newmark_beta=scheme_beta(cfg.scheme))  # the task's scheme, whatever pair is passed
+    if beta is not None and v.newmark_beta != beta:
+        v = v.replace(newmark_beta=beta)  # the task's scheme, whatever pair is passed
     if not v.consts[C_FS] >= MIN_STATIC_MESH_FORCE:  # features and rewards are forces / F_s: F_s = 0 gives inf
         raise ValueError(
             f"{label} must load the mesh (T_p, T_g > 0): the env scales forces by the static mesh "

@@ -54,6 +54,8 @@ FOX_GOODWIN_BETA = 1.0 / 12.0
 """Newmark beta of the Fox-Goodwin scheme (gamma = 1/2): second order with damping, with a far smaller error
 constant on this model (docs/SIMULATOR.md, "Fox-Goodwin"), stable only for Omega_max h < sqrt(6)
 (:func:`gear_env.sim.linear.newmark_step_limit`)."""
+SCHEME_BETAS: dict[str, float] = {"paper": NEWMARK_BETA, "fox-goodwin": FOX_GOODWIN_BETA}
+"""The Newmark schemes by name and their beta (``gear-env ... --scheme``, the environments' ``scheme`` setting)."""
 C_BETA = 30  # Newmark beta of the integrator (numerics: GearParams.newmark_beta)
 N_CONSTS = 31  # length of the fixed part; the harmonic tail follows it
 C_TAIL = N_CONSTS  # tail: kappa_n (cos, sin)(phi_kn), n = 1..N_k, then E_n / b0 (cos, sin)(phi_en), n = 1..N_e
