@@ -9,7 +9,11 @@ same one core. The workloads are those of the three benchmarks, called from thei
 * ``sim-short``: ``GearSimulator.advance(1)`` calls/s (constant model, omega 1.2, N 192);
 * ``lanes-64``, ``scalar-8``: the SIMD lanes kernel at 64 systems, the scalar batch kernel at 8
   (the default control step, env-steps/s), as ``bench_batch_kernels.py`` times them;
-* ``env-single``, ``env-vec-8``, ``env-vec-64``: the environments, env-steps/s.
+* ``env-single``, ``env-vec-8``, ``env-vec-16``, ``env-vec-64``: the environments, env-steps/s
+  (``GearSpeedEnv()``'s defaults, or each side's ``--a-env``/``--b-env`` id with ``--a-cfg``/``--b-cfg``
+  settings, so that a setting of this tree is timed against another tree's, e.g. a step count against
+  the code of an issue's date:
+  ``--ref ad98ae5 --a-env GearSpeedDemand-v0 --b-env GearSpeedDemand-v1 --b-cfg '{"steps_per_period": 72}'``).
 
 Rates are per CPU second of the child (robust against other jobs on the machine). Each child
 warms up first (its compile is not timed; the numba cache, one folder per source hash, is kept
@@ -42,6 +46,7 @@ WORKLOADS = (
     "scalar-8",
     "env-single",
     "env-vec-8",
+    "env-vec-16",
     "env-vec-64",
 )
 
@@ -53,6 +58,8 @@ import bench_env as E
 import bench_simulator as S
 secs = {seconds!r}
 only = {only!r}
+env_id = {env_id!r}
+cfg = json.loads({cfg!r})
 
 def run(name, warm):
     t = 0.05 if warm else secs
@@ -65,9 +72,9 @@ def run(name, warm):
     if name == "scalar-8":
         return E.bench_kernel(8, t, lanes=False)
     if name == "env-single":
-        return E.bench_single(t)
+        return E.bench_single(t, env_id, **cfg)
     if name.startswith("env-vec-"):
-        return E.bench_vector(int(name[8:]), t)
+        return E.bench_vector(int(name[8:]), t, env_id, **cfg)
     raise ValueError(name)
 
 for n in only:
@@ -76,9 +83,11 @@ print(json.dumps({{n: run(n, False) for n in only}}))
 """
 
 
-def _child(tree: Path, only: list[str], seconds: float, cpu: int, cwd: str) -> dict[str, float]:
+def _child(
+    tree: Path, only: list[str], seconds: float, cpu: int, cwd: str, env_id: str | None = None, cfg: str = "{}"
+) -> dict[str, float]:
     env = dict(os.environ, PYTHONPATH=str(tree))
-    code = _CHILD.format(bench=str(HERE), seconds=seconds, only=list(only))
+    code = _CHILD.format(bench=str(HERE), seconds=seconds, only=list(only), env_id=env_id, cfg=cfg)
     cmd = [sys.executable, "-c", code]
     if hasattr(os, "sched_setaffinity"):
         cmd = ["taskset", "-c", str(cpu), *cmd]
@@ -96,7 +105,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--only", nargs="+", choices=WORKLOADS, default=list(WORKLOADS), help="workloads to run")
     ap.add_argument("--cpu", type=int, default=None, help="core to pin the children to (default: the last)")
     ap.add_argument("--tree", default=str(ROOT), help="folder holding side B's gear_env (default: this tree)")
+    for side in ("a", "b"):
+        who = f"env-* workloads of side {side.upper()}"
+        ap.add_argument(f"--{side}-env", metavar="ID", help=f"{who}: this registered id")
+        ap.add_argument(f"--{side}-cfg", metavar="JSON", default="{}", help=f"{who}: these settings (a JSON object)")
     args = ap.parse_args(argv)
+    for side in ("a", "b"):
+        try:
+            if not isinstance(json.loads(getattr(args, f"{side}_cfg")), dict):
+                raise ValueError("not an object")
+        except ValueError as exc:
+            ap.error(f"--{side}-cfg must be a JSON object of environment settings: {exc}")
     os.environ.setdefault("NUMBA_CACHE_DIR", str(Path(tempfile.gettempdir()) / "gear-env-ab-cache"))
     cpu = args.cpu if args.cpu is not None else (os.cpu_count() or 1) - 1
     with tempfile.TemporaryDirectory() as tmp:
@@ -109,11 +128,25 @@ def main(argv: list[str] | None = None) -> int:
         subprocess.run(["tar", "-x", "-C", str(tree_a)], input=arch.stdout, check=True)
         trees = {"A": tree_a, "B": Path(args.tree)}
         print(f"A = {args.ref} ({tree_a}), B = {args.tree}; {args.rounds} rounds, {args.seconds} s each")
+        for side in ("a", "b"):
+            what = getattr(args, f"{side}_env") or "GearSpeedEnv()"
+            print(f"  env-* of {side.upper()}: {what} {getattr(args, f'{side}_cfg')}")
         print("load before:", os.getloadavg())
         ratios: dict[str, list[float]] = {n: [] for n in args.only}
         for r in range(args.rounds):
             order = ("A", "B") if r % 2 == 0 else ("B", "A")
-            res = {side: _child(trees[side], args.only, args.seconds, cpu, str(cwd)) for side in order}
+            res = {
+                side: _child(
+                    trees[side],
+                    args.only,
+                    args.seconds,
+                    cpu,
+                    str(cwd),
+                    getattr(args, f"{side.lower()}_env"),
+                    getattr(args, f"{side.lower()}_cfg"),
+                )  # fmt: skip
+                for side in order
+            }
             for n in args.only:
                 ratios[n].append(res["B"][n] / res["A"][n])
             print(f"round {r + 1}: " + ", ".join(f"{n} {ratios[n][-1]:.3f}" for n in args.only), flush=True)

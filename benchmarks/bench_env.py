@@ -40,11 +40,19 @@ def _timed(step_fn, seconds: float) -> tuple[int, float]:
     return n, c - c0
 
 
-def bench_single(seconds: float, **cfg) -> float:
-    """Env steps per second of one GearSpeedEnv (random actions, auto-reset)."""
-    from gear_env.envs.env import GearSpeedEnv
+def bench_single(seconds: float, env_id: str | None = None, **cfg) -> float:
+    """Env steps per second of one GearSpeedEnv (random actions, auto-reset); with ``env_id``, of
+    ``gym.make(env_id, **cfg)`` (its wrappers included)."""
+    if env_id is None:
+        from gear_env.envs.env import GearSpeedEnv
 
-    env = GearSpeedEnv(**cfg)
+        env = GearSpeedEnv(**cfg)
+    else:
+        import gymnasium as gym
+
+        import gear_env  # noqa: F401  (registers the ids)
+
+        env = gym.make(env_id, **cfg)
     env.reset(seed=0)
     rng = np.random.default_rng(0)
     acts = rng.uniform(-1, 1, (4096, 1)).astype(np.float32)
@@ -62,11 +70,19 @@ def bench_single(seconds: float, **cfg) -> float:
     return n / dt
 
 
-def bench_vector(num_envs: int, seconds: float, **cfg) -> float:
-    """Environment steps per second (num_envs x vector steps) of GearSpeedVectorEnv."""
-    from gear_env.envs.vector_env import GearSpeedVectorEnv
+def bench_vector(num_envs: int, seconds: float, env_id: str | None = None, **cfg) -> float:
+    """Environment steps per second (num_envs x vector steps) of GearSpeedVectorEnv; with ``env_id``,
+    of ``gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point", **cfg)``."""
+    if env_id is None:
+        from gear_env.envs.vector_env import GearSpeedVectorEnv
 
-    venv = GearSpeedVectorEnv(num_envs, **cfg)
+        venv = GearSpeedVectorEnv(num_envs, **cfg)
+    else:
+        import gymnasium as gym
+
+        import gear_env  # noqa: F401  (registers the ids)
+
+        venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **cfg)
     venv.reset(seed=0)
     rng = np.random.default_rng(0)
     acts = rng.uniform(-1, 1, (64, num_envs, 1)).astype(np.float32)
