@@ -56,7 +56,7 @@ N_ROWS = Q_WA + 1
 
 @kernel_inline
 def _lane_k(B, e):
-    """The step constants (``kernels.step_consts``, N_K = 21 of them) of lane e, rows R_K, R_K + 1, ...
+    """The step constants (``kernels.step_consts``, N_K = 22 of them) of lane e, rows R_K, R_K + 1, ...
 
     Written out: ``to_fixed_tuple`` of the column slice gives the same numbers but stops LLVM from
     vectorising the lane loop (3x slower in an interleaved A/B run, benchmarks/ab_compare.py)."""
@@ -64,7 +64,7 @@ def _lane_k(B, e):
     return (
         B[r, e], B[r + 1, e], B[r + 2, e], B[r + 3, e], B[r + 4, e], B[r + 5, e], B[r + 6, e], B[r + 7, e],
         B[r + 8, e], B[r + 9, e], B[r + 10, e], B[r + 11, e], B[r + 12, e], B[r + 13, e], B[r + 14, e],
-        B[r + 15, e], B[r + 16, e], B[r + 17, e], B[r + 18, e], B[r + 19, e], B[r + 20, e],
+        B[r + 15, e], B[r + 16, e], B[r + 17, e], B[r + 18, e], B[r + 19, e], B[r + 20, e], B[r + 21, e],
     )  # fmt: skip
 
 
@@ -131,8 +131,9 @@ def _first_pass(B, TB, nl, m, jj, dphi, dynamic, tol):
         B[R_OLD + 17, e] = g[2]
         B[R_OLD + 18, e] = g[3]
         B[R_OLD + 19, e] = g[4]
+        s1 = K.state_t(t, a[0], a[1], a[2], a[3], a[4], s, k[K.K_VC] * hc[0])  # Newmark's v (newmark.state_t)
         for i in range(K.NSTATE):
-            B[R_S + i, e] = t[i]
+            B[R_S + i, e] = s1[i]
         for i in range(K.NDOF):
             an = a[i]
             B[R_S + K.NSTATE + i, e] = an
@@ -425,8 +426,12 @@ def _integrate(
                     if B[Q_LIVE, el] == 0.0:
                         continue
                     e = e0 + el
-                    for i in range(K.NSTATE):
+                    # the velocity the forces felt (newmark.output_t); Newmark's own after a split step
+                    wh = B[R_K + K.K_VC, el] * B[O_H, el] * (1.0 - B[O_SPLIT, el])
+                    for i in range(K.NDOF):
                         poincare[e, p, i] = B[R_S + i, el]
+                    for i in range(K.NDOF, K.NSTATE):
+                        poincare[e, p, i] = B[R_S + i, el] - wh * (B[R_S + K.NDOF + i, el] - B[R_OLD + K.NDOF + i, el])
                     poincare[e, p, K.PC_DELTA] = B[O_DELTA, el]
                     poincare[e, p, K.PC_BD] = B[O_BD, el]
                     poincare[e, p, K.PC_PSI] = K.psi_t(B[O_SP, el], B[O_CP, el], C[e], dynamic)

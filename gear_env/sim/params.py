@@ -54,10 +54,27 @@ FOX_GOODWIN_BETA = 1.0 / 12.0
 """Newmark beta of the Fox-Goodwin scheme (gamma = 1/2): second order with damping, with a far smaller error
 constant on this model (docs/SIMULATOR.md, "Fox-Goodwin"), stable only for Omega_max h < sqrt(6)
 (:func:`gear_env.sim.linear.newmark_step_limit`)."""
-SCHEME_BETAS: dict[str, float] = {"paper": NEWMARK_BETA, "fox-goodwin": FOX_GOODWIN_BETA}
-"""The Newmark schemes by name and their beta (``gear-env ... --scheme``, the environments' ``scheme`` setting)."""
+SCHEMES: dict[str, tuple[float, bool]] = {
+    "paper": (NEWMARK_BETA, False),
+    "fox-goodwin": (FOX_GOODWIN_BETA, False),
+    "fox-goodwin-vc": (FOX_GOODWIN_BETA, True),
+}
+"""The Newmark schemes by name: (``GearParams.newmark_beta``, ``GearParams.velocity_correction``) (``gear-env ...
+--scheme``, the environments' ``scheme`` setting). ``"fox-goodwin-vc"``: Fox-Goodwin with the velocity of the
+damping forces corrected (:class:`GearParams`, ``velocity_correction``)."""
+SCHEME_BETAS: dict[str, float] = {name: beta for name, (beta, _vc) in SCHEMES.items()}
+"""The Newmark schemes by name and their beta (:data:`SCHEMES` without the velocity correction)."""
+
+
+def scheme_name(newmark_beta: float, velocity_correction: bool) -> str | None:
+    """The name in :data:`SCHEMES` of a (beta, velocity correction) pair, None for a beta between 1/12 and 1/4."""
+    for name, pair in SCHEMES.items():
+        if pair == (newmark_beta, bool(velocity_correction)):
+            return name
+    return None
 C_BETA = 30  # Newmark beta of the integrator (numerics: GearParams.newmark_beta)
-N_CONSTS = 31  # length of the fixed part; the harmonic tail follows it
+C_VC = 31  # 1.0 with GearParams.velocity_correction (Fox-Goodwin's velocity corrected in the forces), else 0.0
+N_CONSTS = 32  # length of the fixed part; the harmonic tail follows it
 C_TAIL = N_CONSTS  # tail: kappa_n (cos, sin)(phi_kn), n = 1..N_k, then E_n / b0 (cos, sin)(phi_en), n = 1..N_e
 MAX_HARMONICS = 64
 
@@ -162,6 +179,7 @@ EXTENSION_DEFAULTS: dict[str, Any] = {
     "backlash_law": "paper",
     "mesh_force_direction": "line_of_action",
     "newmark_beta": NEWMARK_BETA,
+    "velocity_correction": False,
 }
 """Fields that :meth:`GearParams.to_dict` leaves out at these values, so that the dict of the
 paper's model is what it was before they existed."""
@@ -264,6 +282,13 @@ class GearParams:
             :func:`gear_env.sim.linear.min_steps_per_period` (omega); the environments keep their step count and
             take, per sub-environment and step where omega is that low, the nearest stable beta
             (:func:`gear_env.sim.linear.stable_beta`). Not with ``tol``. Left out of :meth:`to_dict` at 1/4.
+        velocity_correction: Fox-Goodwin only (``newmark_beta`` 1/12; scheme ``"fox-goodwin-vc"``). Newmark's
+            velocity carries a bias of h^2/12 da/dt under beta 1/12, which the damping forces (bearings, mesh) then
+            feel; with this True they are evaluated with v - (h/12)(a_new - a_old) instead (the bias removed to
+            O(h^3)), at the same cost per step. The Poincare samples and recorded trajectories hold that
+            corrected velocity; the state carried from step to step (``GearSimulator.state``) keeps Newmark's
+            velocity, so a run continued from it is the same run. Fixed steps only: ``tol``, the Floquet and
+            continuation analyses (exact Jacobian of the step) refuse it. Left out of :meth:`to_dict` at False.
     """
 
     pressure_angle_deg: float = 20.0
@@ -300,6 +325,7 @@ class GearParams:
     backlash_law: str = "paper"
     mesh_force_direction: str = "line_of_action"
     newmark_beta: float = NEWMARK_BETA
+    velocity_correction: bool = False
     _consts: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -310,6 +336,7 @@ class GearParams:
                 "te_harmonics",
                 "backlash_law",
                 "mesh_force_direction",
+                "velocity_correction",
             ):
                 continue
             v = getattr(self, f.name)
@@ -332,6 +359,14 @@ class GearParams:
         if not isinstance(self.mesh_force_direction, str) or self.mesh_force_direction not in FORCE_DIRECTIONS:
             raise ValueError(
                 f"GearParams.mesh_force_direction must be one of {FORCE_DIRECTIONS}, got {self.mesh_force_direction!r}"
+            )
+        if not isinstance(self.velocity_correction, (bool, np.bool_)):
+            raise ValueError(f"GearParams.velocity_correction must be True or False, got {self.velocity_correction!r}")
+        object.__setattr__(self, "velocity_correction", bool(self.velocity_correction))
+        if self.velocity_correction and self.newmark_beta != FOX_GOODWIN_BETA:
+            raise ValueError(
+                "GearParams.velocity_correction takes Fox-Goodwin's beta: newmark_beta must be 1/12 "
+                f"({FOX_GOODWIN_BETA!r}), got {self.newmark_beta!r}"
             )
         if len(self.te_harmonics) > 1 and self.friction > 0.0:
             raise ValueError(
@@ -470,6 +505,7 @@ class GearParams:
         c[C_COS_A0] = math.cos(self.alpha0)
         c[C_MU] = self.friction
         c[C_BETA] = self.newmark_beta
+        c[C_VC] = 1.0 if self.velocity_correction else 0.0
         nk = len(self.stiffness_harmonics) if len(self.stiffness_harmonics) > 1 else 0
         ne = len(self.te_harmonics) if len(self.te_harmonics) > 1 else 0
         c[C_NK] = nk

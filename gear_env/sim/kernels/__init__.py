@@ -93,6 +93,7 @@ from .layout import (
     K_R,
     K_SIN_A0,
     K_SIN_PHI_E,
+    K_VC,
     K_XIM2,
     N_K,
     N_PC,
@@ -139,6 +140,7 @@ from .layout import (
     ST_U_MAX,
     ST_U_MIN,
     TWO_PI,
+    VC_WEIGHT,
     WORK_SIZE,
 )
 from .mesh import (
@@ -195,8 +197,10 @@ from .newmark import (
     newton_iter_t,
     newton_start_t,
     omega_step_t,
+    output_t,
     split_at_t,
     split_step_t,
+    state_t,
     step_coeffs,
     store_t,
 )

@@ -14,6 +14,7 @@ import numpy as np
 from .jit import kernel, kernel_inline, readonly, runtime_int, runtime_true
 from .layout import (
     DIVERGED,
+    K_VC,
     N_LOOP_ACC,
     NDOF,
     NSTATE,
@@ -71,6 +72,7 @@ from .newmark import (
     load_t,
     newmark_try_t,
     omega_step_t,
+    output_t,
     split_step_t,
     step_coeffs,
     store_t,
@@ -160,11 +162,12 @@ def integrate_record(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, out, ma
                     break
             el += hc[0]
             g = guess_t(s, s1, dynamic == 0 or split != 0.0)
+            so = output_t(s, s1, k[K_VC] * hc[0] * (1.0 - split))  # a split step's: Newmark's velocity
             s = s1
             if _diverged_t(s):
                 store_t(s, x, a)
                 return DIVERGED, j + 1, el
-            _record_row_t(out, j + 1, s, el, phi0 + dphi * (j + 1), wb, delta, bd, sp, cp, F, region, c, dynamic)
+            _record_row_t(out, j + 1, so, el, phi0 + dphi * (j + 1), wb, delta, bd, sp, cp, F, region, c, dynamic)
             wa = wb
             split = 0.0
             j += 1
@@ -385,6 +388,7 @@ def stats_segment(
         h = hc[0]
         el += h
         g = guess_t(s, s1, dynamic == 0)
+        s0 = s
         s = s1
         if _diverged_t(s):
             status = DIVERGED
@@ -393,8 +397,9 @@ def stats_segment(
         acc, tr_prev = _acc_step(acc, h, s, F, region, delta, bd, sp, 0.0, F_prev, reg_prev, tr_prev)
         F_prev = F
         reg_prev = region
-        if m == 0:
-            _poincare_store_t(poincare, (j + 1) // n_steps - 1, s, F, delta, bd, sp, cp, c, dynamic)
+        if m == 0:  # the velocity the forces felt (newmark.output_t; Newmark's own without the correction)
+            so = output_t(s0, s, k[K_VC] * h)
+            _poincare_store_t(poincare, (j + 1) // n_steps - 1, so, F, delta, bd, sp, cp, c, dynamic)
         wa = wb
         j += 1
     if j < total and status == OK:

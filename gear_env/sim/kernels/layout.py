@@ -11,6 +11,9 @@ from ..params import FOX_GOODWIN_BETA, NEWMARK_BETA  # noqa: F401  (re-exported)
 NDOF = 5
 NSTATE = 10
 GAMMA = 0.5
+VC_WEIGHT = 1.0 / 12.0
+"""The velocity correction's weight under Fox-Goodwin (``GearParams.velocity_correction``): Newmark's velocity
+exceeds the true one by h^2/12 da/dt + O(h^4) when beta = 1/12, so the forces take v - (h/12)(a_new - a_old)."""
 BETA = NEWMARK_BETA  # the default of GearParams.newmark_beta; the kernels read beta per step (K_BETA)
 TWO_PI = 2.0 * math.pi
 
@@ -95,7 +98,7 @@ RS_SIZE = RS_HC + 7
 
 WORK_SIZE = 80
 
-# The constants of one Newmark step (:func:`kernels.mesh.step_consts`), a tuple of 21 floats that
+# The constants of one Newmark step (:func:`kernels.mesh.step_consts`), a tuple of 22 floats that
 # numba keeps in registers: ``k[K_XIM2]`` is 2 xi_m. The indices are compile-time constants, so a
 # named index costs nothing. Natural time, b0 units.
 (
@@ -120,6 +123,7 @@ WORK_SIZE = 80
     K_COS_PHI_E,  # cos phi_e
     K_SIN_PHI_E,  # sin phi_e
     K_BETA,  # Newmark beta (GearParams.newmark_beta; 1/4 = the paper's average acceleration)
-) = range(21)
-N_K = K_BETA + 1
+    K_VC,  # velocity correction w: the forces feel v - w h (a_new - a_old) (VC_WEIGHT or 0)
+) = range(22)
+N_K = K_VC + 1
 """Number of step constants (length of :func:`kernels.mesh.step_consts`)."""

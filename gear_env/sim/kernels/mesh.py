@@ -78,10 +78,12 @@ from ..params import (
     C_TAIL,
     C_TG1,
     C_TP1,
+    C_VC,
     C_XI_BG,
     C_XI_BP,
     C_XI_M,
     FORCE_GRADIENT,
+    FOX_GOODWIN_BETA,
     LAW_INVOLUTE,
 )
 from .jit import kernel, kernel_inline
@@ -106,6 +108,7 @@ from .layout import (
     K_SIN_A0,
     K_SIN_PHI_E,
     K_XIM2,
+    VC_WEIGHT,
 )
 
 
@@ -143,6 +146,7 @@ def step_consts(c):
         math.cos(c[C_PHI_E]),
         math.sin(c[C_PHI_E]),
         c[C_BETA],
+        c[C_VC] * VC_WEIGHT if c[C_BETA] == FOX_GOODWIN_BETA else 0.0,
     )
 
 

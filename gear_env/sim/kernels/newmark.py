@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 
 from .jit import kernel, kernel_inline, runtime_int
-from .layout import DIVERGENCE_LIMIT, GAMMA, K_BETA, NDOF, NEWTON_FAILED, NSTATE, OK
+from .layout import DIVERGENCE_LIMIT, GAMMA, K_BETA, K_VC, NDOF, NEWTON_FAILED, NSTATE, OK
 from .mesh import (
     backlash,
     backlash_branch,
@@ -55,18 +55,55 @@ from .mesh import (
 
 @kernel_inline
 def step_coeffs(h, k):
-    """Newmark coefficients of a step of length h (natural time): (h, beta h^2, gamma h,
-    (1/2 - beta) h^2, (1 - gamma) h, inverse diagonal of the Newton matrix for the pinion and the
+    """Newmark coefficients of a step of length h (natural time): (h, beta h^2, gamma_f h,
+    (1/2 - beta) h^2, (1 - gamma_f) h, inverse diagonal of the Newton matrix for the pinion and the
     gear bearings). Loop-invariant while omega is constant. beta is ``k[K_BETA]``
-    (``GearParams.newmark_beta``), gamma = 1/2."""
+    (``GearParams.newmark_beta``), gamma = 1/2.
+
+    gamma_f = 1/2 - w, w = ``k[K_VC]`` (0 unless ``GearParams.velocity_correction``): the velocity the
+    forces feel, v_f = v_n + h ((1 - gamma_f) a_n + gamma_f a_{n+1}) = v_{n+1} - w h (a_{n+1} - a_n), is
+    what the predictor and corrector below produce (:func:`newton_start_t`, :func:`corrector_t`); the
+    state keeps Newmark's v_{n+1} = v_f + w h (a_{n+1} - a_n) (:func:`state_t`). With w = 0 every
+    coefficient is the plain scheme's, bit for bit."""
     beta = k[K_BETA]
     bh2 = beta * h * h
-    gh = GAMMA * h
+    gf = GAMMA - k[K_VC]
+    gh = gf * h
     c_p, c_g, k_p, k_g = bearing_t(k)  # dr/da = I + gh dr/dv + bh2 dr/dq: its diagonal
     d0 = 1.0 + gh * c_p + bh2 * k_p
     d2 = 1.0 + gh * c_g + bh2 * k_g
     q = 1.0 / (d0 * d2)  # one division for both inverses (recomputed every step of a ramp)
-    return h, bh2, gh, h * h * (0.5 - beta), h * (1.0 - GAMMA), q * d2, q * d0
+    return h, bh2, gh, h * h * (0.5 - beta), h * (1.0 - gf), q * d2, q * d0
+
+
+@kernel_inline
+def state_t(t, a0, a1, a2, a3, a4, s, wh):
+    """The new state tuple (q, v, a) of a step from the corrected (q, v_f) ``t``, the new acceleration
+    (a0..a4) and the step's start state ``s``: v = v_f + wh (a - a_old), wh = ``k[K_VC]`` h (0: v_f)."""
+    return (
+        t[0], t[1], t[2], t[3], t[4],
+        t[5] + wh * (a0 - s[10]),
+        t[6] + wh * (a1 - s[11]),
+        t[7] + wh * (a2 - s[12]),
+        t[8] + wh * (a3 - s[13]),
+        t[9] + wh * (a4 - s[14]),
+        a0, a1, a2, a3, a4,
+    )  # fmt: skip
+
+
+@kernel_inline
+def output_t(s0, s1, wh):
+    """The state tuple s1 of a step from s0 with the velocity the forces felt (:func:`step_coeffs`):
+    v - wh (a - a_old), wh = ``k[K_VC]`` h: what Poincare samples and records hold (s1 itself when wh = 0)."""
+    return (
+        s1[0], s1[1], s1[2], s1[3], s1[4],
+        s1[5] - wh * (s1[10] - s0[10]),
+        s1[6] - wh * (s1[11] - s0[11]),
+        s1[7] - wh * (s1[12] - s0[12]),
+        s1[8] - wh * (s1[13] - s0[13]),
+        s1[9] - wh * (s1[14] - s0[14]),
+        s1[10], s1[11], s1[12], s1[13], s1[14],
+    )  # fmt: skip
 
 
 @kernel_inline
@@ -237,7 +274,7 @@ def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol, dq_lin=D
         code, a, t, mesh, fin = newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, False, True,
                                               dq_lin)  # fmt: skip
         if code == NEWTON_DONE:
-            s1 = (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], a[0], a[1], a[2], a[3], a[4])
+            s1 = state_t(t, a[0], a[1], a[2], a[3], a[4], s, k[K_VC] * hc[0])
             return True, s1, fin[0], fin[1], fin[2], fin[3], fin[4], fin[5]
         if code == NEWTON_BAD:
             break
@@ -278,7 +315,7 @@ def newmark_branch_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol, r
         mesh = mesh_branch_t(t, ce, se, w_b, k, dynamic, region)
         if dynamic == 0 or dmax <= tol * (1.0 + max(abs(a0), abs(a1), abs(a2), abs(a3), abs(a4))):
             delta, ddelta, bd, f, _r, sp, cp, _b0, _b1, _p0, _p1 = mesh
-            s1 = (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], a0, a1, a2, a3, a4)
+            s1 = state_t(t, a0, a1, a2, a3, a4, s, k[K_VC] * hc[0])
             return True, s1, force_t(ddelta, f, kk, k), delta, bd, sp, cp
     return False, s, 0.0, 0.0, 0.0, 0.0, 0.0
 
