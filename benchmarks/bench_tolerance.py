@@ -14,7 +14,9 @@ summed time of fixed 192 over the summed time of the tol mode (> 1: tol mode fas
     python benchmarks/bench_tolerance.py --tols 3e-3 --fox-goodwin 64 96 --fixed 64 96   # the schemes side by side
 
 ``--fox-goodwin N ...`` adds fixed-step modes with Fox-Goodwin's Newmark beta 1/12
-(``GearParams(newmark_beta=1/12)``), ``--fixed N ...`` fixed-step modes of the paper's beta 1/4 at other step counts,
+(``GearParams(newmark_beta=1/12)``), ``--fox-goodwin-vc N ...`` the same with the velocity correction
+(``velocity_correction=True``, scheme ``"fox-goodwin-vc"``), ``--fixed N ...`` fixed-step modes of the paper's
+beta 1/4 at other step counts,
 ``--beta BETA:N ...`` fixed-step modes of any beta in [1/12, 1/4]. ``--omega-step 0.01`` doubles the orbits: the
 grid of the default step plus the omegas halfway between (a set nobody chose a step count on).
 
@@ -56,6 +58,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="also run every tol mode with the fixed-step drivers' Newton rule (A/B)")  # fmt: skip
     ap.add_argument("--fox-goodwin", type=int, nargs="*", default=[], metavar="N",
                     help="also time fixed N steps per period with Newmark beta 1/12 (Fox-Goodwin)")  # fmt: skip
+    ap.add_argument("--fox-goodwin-vc", type=int, nargs="*", default=[], metavar="N",
+                    help="also time fixed N steps per period with Fox-Goodwin and the velocity correction")  # fmt: skip
     ap.add_argument("--fixed", type=int, nargs="*", default=[], metavar="N",
                     help="also time fixed N steps per period with the paper's beta 1/4")  # fmt: skip
     ap.add_argument("--beta", nargs="*", default=[], metavar="BETA:N",
@@ -69,6 +73,8 @@ def main(argv: list[str] | None = None) -> int:
         modes += [(f"tol {t:g} strict", t, None, paper) for t in args.tols]
     modes += [(f"fixed {n}", None, n, paper) for n in args.fixed]
     modes += [(f"fox-goodwin {n}", None, n, fg) for n in args.fox_goodwin]
+    fgvc = fg.replace(velocity_correction=True)
+    modes += [(f"fox-goodwin-vc {n}", None, n, fgvc) for n in args.fox_goodwin_vc]
     for spec in args.beta:
         b, _, n = spec.partition(":")
         try:

@@ -12,6 +12,7 @@ the cost the CPU time of the steps (the settings interleaved per seed, so drift 
     python benchmarks/env_tol.py --vector 16 --rounds 5   # also the vector env's env-steps/s, Fox-Goodwin vs 64 steps
 
 The Fox-Goodwin settings are ``params={"newmark_beta": 1/12}`` (``GearParams.newmark_beta``), at 64 and 96 steps,
+with the velocity correction (``"velocity_correction": True``, scheme ``"fox-goodwin-vc"``) at 64 and 68,
 and with ``steps_per_period="auto"`` (48, 64 or 80 steps by the contact loss of the step before; opt-in, the
 Fox-Goodwin ids keep 64).
 
@@ -32,6 +33,7 @@ import time
 import numpy as np
 
 FOX_GOODWIN = {"newmark_beta": 1.0 / 12.0}  # GearParams(newmark_beta=1/12) as the env's params setting
+FOX_GOODWIN_VC = {"newmark_beta": 1.0 / 12.0, "velocity_correction": True}  # scheme "fox-goodwin-vc"
 SETTINGS = {
     "64 steps (default)": {},
     "128 steps": {"steps_per_period": 128},
@@ -41,6 +43,8 @@ SETTINGS = {
     "tol 1e-5": {"tol": 1e-5},
     "Fox-Goodwin 64 steps": {"params": FOX_GOODWIN},
     "Fox-Goodwin 96 steps": {"params": FOX_GOODWIN, "steps_per_period": 96},
+    "Fox-Goodwin-vc 64 steps": {"params": FOX_GOODWIN_VC},
+    "Fox-Goodwin-vc 68 steps": {"params": FOX_GOODWIN_VC, "steps_per_period": 68},
     "Fox-Goodwin auto": {"params": FOX_GOODWIN, "steps_per_period": "auto"},
 }
 
@@ -69,6 +73,7 @@ def vector_rates(env_id: str, n: int, rounds: int, seconds: float) -> dict[str, 
         "64 steps (default)": GearSpeedVectorEnv(n, task_config(env_id, {})),
         "Fox-Goodwin 64 steps": GearSpeedVectorEnv(n, task_config(env_id, {"params": FOX_GOODWIN})),
         "Fox-Goodwin auto": GearSpeedVectorEnv(n, task_config(env_id, SETTINGS["Fox-Goodwin auto"])),
+        "Fox-Goodwin-vc 64 steps": GearSpeedVectorEnv(n, task_config(env_id, {"params": FOX_GOODWIN_VC})),
     }
     rng = np.random.default_rng(1)
     for e in envs.values():

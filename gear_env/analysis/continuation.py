@@ -56,7 +56,7 @@ import numpy as np
 from .._numba_cache import announce_compile
 from ..errors import SimulationDivergedError
 from ..sim import kernels as K
-from ..sim.params import GearParams, model_code, refuse_extensions
+from ..sim.params import GearParams, model_code, refuse_extensions, refuse_velocity_correction
 from ..sim.simulator import (
     NEWTON_MAX_ITER,
     NEWTON_TOL,
@@ -282,6 +282,7 @@ class OrbitMap:
         self.code = model_code(model)
         self.params = params if params is not None else GearParams()
         refuse_extensions(self.params, "continuation")
+        refuse_velocity_correction(self.params, "continuation")
         self.period = int(period)
         self.fixed_steps = steps_per_period
         self._c = K.readonly(np.ascontiguousarray(self.params.consts))

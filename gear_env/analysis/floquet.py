@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import SimulationDivergedError
 from ..sim import kernels as K
 from ..sim.integration import integrate
-from ..sim.params import GearParams, model_code, refuse_extensions
+from ..sim.params import GearParams, model_code, refuse_extensions, refuse_velocity_correction
 from ..sim.simulator import (
     GearSimulator,
     check_count,
@@ -129,6 +129,7 @@ class PeriodMap:
         if not isinstance(self.params, GearParams):
             raise ValueError(f"params must be a GearParams, got {type(self.params).__name__}")
         refuse_extensions(self.params, "Floquet analysis")
+        refuse_velocity_correction(self.params, "Floquet analysis")
         self.period = check_count(period, "period")
         self.steps = resolve_steps(steps_per_period, self.omega, self.params)
         check_stable_steps(self.params, self.steps, self.omega)  # GearParams.newmark_beta < 1/4: refused before work

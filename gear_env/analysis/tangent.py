@@ -438,7 +438,10 @@ def run_tangent_map(
     info (``N_INFO``), the state at the end of every mesh period (period, 10)); the caller checks the
     status and finiteness."""
     from ..sim.integration import NEWTON_MAX_ITER, NEWTON_TOL
+    from ..sim.params import C_VC
 
+    if consts[C_VC] != 0.0:
+        raise ValueError("the tangent map takes the plain Newmark step (GearParams.velocity_correction = False)")
     y = np.array(x, dtype=float)
     jac = np.empty((K.NSTATE, K.NSTATE))
     pc = np.empty((int(period), K.NSTATE))

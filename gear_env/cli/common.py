@@ -86,32 +86,35 @@ def add_params_options(p: argparse.ArgumentParser) -> None:
         default=16,
         help="stiffness harmonics taken from --pair, 1-64 (default 16)",
     )
-    from ..sim.params import SCHEME_BETAS
+    from ..sim.params import SCHEMES
 
     p.add_argument(
         "--scheme",
-        choices=tuple(SCHEME_BETAS),
+        choices=tuple(SCHEMES),
         default=None,
-        help="Newmark scheme: paper (beta 1/4, default, unconditionally stable) or fox-goodwin (beta 1/12: "
-        "less error per step, stable above a step count that grows at low omega; GearParams.newmark_beta)",
+        help="Newmark scheme: paper (beta 1/4, default, unconditionally stable), fox-goodwin (beta 1/12: "
+        "less error per step, stable above a step count that grows at low omega; GearParams.newmark_beta) or "
+        "fox-goodwin-vc (beta 1/12 with the damping forces' velocity corrected: less error again at the same "
+        "cost; GearParams.velocity_correction)",
     )
 
 
 def scheme_text(params: Any) -> str:
-    """The Newmark scheme of ``params`` for a command's printout: "paper (beta 1/4)", "fox-goodwin (beta 1/12)"."""
+    """The Newmark scheme of ``params`` for a command's printout: "paper (beta 1/4)", "fox-goodwin (beta 1/12)",
+    "fox-goodwin-vc (beta 1/12)"."""
     from fractions import Fraction
 
-    from ..sim.params import SCHEME_BETAS
+    from ..sim.params import scheme_name
 
     b = params.newmark_beta
-    names = {beta: name for name, beta in SCHEME_BETAS.items()}
-    return f"{names[b]} (beta {Fraction(b).limit_denominator(100)})" if b in names else f"beta {b:.6g}"
+    name = scheme_name(b, params.velocity_correction)
+    return f"{name} (beta {Fraction(b).limit_denominator(100)})" if name else f"beta {b:.6g}"
 
 
 def params_from_args(args: argparse.Namespace) -> Any:
     """The :class:`~gear_env.sim.params.GearParams` the parameter options describe (a ValueError names the field)."""
     from ..io import read_json
-    from ..sim.params import SCHEME_BETAS, GearParams
+    from ..sim.params import SCHEMES, GearParams
 
     fields: dict[str, Any] = {}
     if getattr(args, "params", None):
@@ -124,9 +127,11 @@ def params_from_args(args: argparse.Namespace) -> Any:
         fields["kappa"] = args.kappa
     scheme = getattr(args, "scheme", None)
     if scheme is not None:
-        if "newmark_beta" in fields:
-            raise ValueError("--scheme cannot be combined with newmark_beta in --params: give one of them")
-        fields["newmark_beta"] = SCHEME_BETAS[scheme]
+        if "newmark_beta" in fields or "velocity_correction" in fields:
+            raise ValueError(
+                "--scheme cannot be combined with newmark_beta or velocity_correction in --params: give one of them"
+            )
+        fields["newmark_beta"], fields["velocity_correction"] = SCHEMES[scheme]
     if getattr(args, "pair", None):
         from ..sim.geometry import SpurPair
 

@@ -246,35 +246,37 @@ BACKLASH_MODELS = ("constant", "dynamic")  # params.MODELS (checked by the confi
 
 
 def _scheme(label: str, v: Any, cfg: Any) -> str | None:
-    from ..sim.params import SCHEME_BETAS  # lazy: keeps this module free of numba
+    from ..sim.params import SCHEMES  # lazy: keeps this module free of numba
 
     if v is None:
         return None
-    if not isinstance(v, str) or v not in SCHEME_BETAS:
-        raise ValueError(f"{label} must be None or one of {list(SCHEME_BETAS)}, got {v!r}")
+    if not isinstance(v, str) or v not in SCHEMES:
+        raise ValueError(f"{label} must be None or one of {list(SCHEMES)}, got {v!r}")
     return v
 
 
 def _params(label: str, v: Any, cfg: Any) -> Any:
-    from ..sim.params import C_FS, SCHEME_BETAS, GearParams, refuse_extensions  # lazy: keeps this module free of numba
+    from ..sim.params import C_FS, SCHEMES, GearParams, refuse_extensions  # lazy: keeps this module free of numba
 
-    beta = None if cfg.scheme is None else SCHEME_BETAS[cfg.scheme]
+    scheme = None if cfg.scheme is None else SCHEMES[cfg.scheme]
     if v is None:
         v = GearParams()
     elif isinstance(v, Mapping):
         given = dict(v)
         v = GearParams.from_dict(given)
-        if beta is not None and "newmark_beta" in given and v.newmark_beta != beta:
-            raise ValueError(
-                f"{label}.newmark_beta = {v.newmark_beta:.6g} conflicts with scheme={cfg.scheme!r} (beta "
-                f"{beta:.6g}; the Fox-Goodwin ids set it): leave newmark_beta out of params or "
-                'give the scheme\'s, choose the beta by scheme ("paper", "fox-goodwin"), or pass scheme=None to take '
-                "params.newmark_beta as given"
-            )
+        for i, name in enumerate(("newmark_beta", "velocity_correction")):
+            if scheme is not None and name in given and getattr(v, name) != scheme[i]:
+                raise ValueError(
+                    f"{label}.{name} = {getattr(v, name)!r} conflicts with scheme={cfg.scheme!r} ({name} "
+                    f"{scheme[i]!r}; the Fox-Goodwin ids set it): leave {name} out of params or give the "
+                    f"scheme's, choose the scheme by name ({', '.join(repr(n) for n in SCHEMES)}), or pass "
+                    f"scheme=None to take params.{name} as given"
+                )
     elif not isinstance(v, GearParams):
         raise ValueError(f"{label} must be a GearParams, a dict of its fields or None, got {v!r}")
-    if beta is not None and v.newmark_beta != beta:
-        v = v.replace(newmark_beta=beta)  # the task's scheme, whatever pair is passed
+    if scheme is not None and (v.newmark_beta, v.velocity_correction) != scheme:
+        # the task's scheme, whatever pair is passed
+        v = v.replace(newmark_beta=scheme[0], velocity_correction=scheme[1])
     if not v.consts[C_FS] >= MIN_STATIC_MESH_FORCE:  # features and rewards are forces / F_s: F_s = 0 gives inf
         raise ValueError(
             f"{label} must load the mesh (T_p, T_g > 0): the env scales forces by the static mesh "

@@ -62,8 +62,6 @@ SCHEMES: dict[str, tuple[float, bool]] = {
 """The Newmark schemes by name: (``GearParams.newmark_beta``, ``GearParams.velocity_correction``) (``gear-env ...
 --scheme``, the environments' ``scheme`` setting). ``"fox-goodwin-vc"``: Fox-Goodwin with the velocity of the
 damping forces corrected (:class:`GearParams`, ``velocity_correction``)."""
-SCHEME_BETAS: dict[str, float] = {name: beta for name, (beta, _vc) in SCHEMES.items()}
-"""The Newmark schemes by name and their beta (:data:`SCHEMES` without the velocity correction)."""
 
 
 def scheme_name(newmark_beta: float, velocity_correction: bool) -> str | None:
@@ -72,6 +70,8 @@ def scheme_name(newmark_beta: float, velocity_correction: bool) -> str | None:
         if pair == (newmark_beta, bool(velocity_correction)):
             return name
     return None
+
+
 C_BETA = 30  # Newmark beta of the integrator (numerics: GearParams.newmark_beta)
 C_VC = 31  # 1.0 with GearParams.velocity_correction (Fox-Goodwin's velocity corrected in the forces), else 0.0
 N_CONSTS = 32  # length of the fixed part; the harmonic tail follows it
@@ -136,6 +136,16 @@ def refuse_extensions(params: GearParams, where: str) -> None:
         raise ValueError(
             f"{where} takes only the paper's mesh force direction (GearParams.mesh_force_direction = "
             f"'line_of_action'), got {params.mesh_force_direction!r}; use gear_env.simulate or GearSimulator"
+        )
+
+
+def refuse_velocity_correction(params: GearParams, where: str) -> None:
+    """Raise ``ValueError`` if ``params.velocity_correction`` is set: the analyses built on the exact Jacobian of
+    the plain Newmark step (Floquet multipliers, continuation) do not carry it."""
+    if params.velocity_correction:
+        raise ValueError(
+            f"{where} takes the plain Newmark step (GearParams.velocity_correction = False; its Jacobian is that "
+            "step's): use scheme 'fox-goodwin' (beta 1/12) or 'paper' for it"
         )
 
 
