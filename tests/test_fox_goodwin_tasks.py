@@ -69,7 +69,7 @@ def test_the_scheme_wins_over_the_beta_of_a_passed_pair():
 
 @pytest.mark.parametrize("bad", ["fox_goodwin", "Paper", 1, True])
 def test_a_bad_scheme_is_refused_naming_the_field_and_the_choices(bad):
-    with pytest.raises(ValueError, match=r"scheme must be None or one of \['paper', 'fox-goodwin'\]"):
+    with pytest.raises(ValueError, match=r"scheme must be None or one of \['paper', 'fox-goodwin', 'fox-goodwin-vc'\]"):
         task_config("GearSpeed-v2", {"scheme": bad})
 
 
