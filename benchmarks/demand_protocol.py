@@ -290,7 +290,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--config",
         metavar="CONFIG.json",
         help="JSON object of environment settings over the task's (as gear-env evaluate --config), e.g. "
-        '{"scheme": "fox-goodwin"} for the Fox-Goodwin scheme (what the v1 demand ids set)',
+        '{"scheme": "fox-goodwin-vc"} for the corrected Fox-Goodwin scheme (what the v1 demand ids set)',
     )
     ap.add_argument(
         "--against-task",

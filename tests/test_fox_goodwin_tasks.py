@@ -1,6 +1,6 @@
 """The Fox-Goodwin tasks (GearSpeed-v2, GearSpeedDemand-v1, ...): the older task with Newmark beta 1/12.
 
-A new id is the older id plus ``scheme="fox-goodwin"``: its config equals the older one's with that beta, an
+A new id is the older id plus ``scheme="fox-goodwin-vc"``: its config equals the older one's with that scheme, an
 episode equals one of the older id made with that beta (bit for bit), the ``scheme`` setting wins over the beta
 of whatever pair a user passes, and the shipped policy and recipe of the older id serve the new one.
 """
@@ -26,19 +26,20 @@ SHORT = {"max_steps": 4, "periods_per_step": 8, "warmup_periods": 16}
 def test_new_id_is_the_older_task_with_fox_goodwin(new, old):
     assert new in TASK_SETTINGS and gym.spec(new).max_episode_steps == gym.spec(old).max_episode_steps
     a, b = task_config(new), task_config(old)
-    assert a.scheme == "fox-goodwin" and b.scheme is None
+    assert a.scheme == "fox-goodwin-vc" and b.scheme is None
     assert a.steps_per_period == b.steps_per_period == 64
     assert a.params.newmark_beta == FOX_GOODWIN_BETA and b.params.newmark_beta == NEWMARK_BETA
-    assert a.params == b.params.replace(newmark_beta=FOX_GOODWIN_BETA)
+    assert a.params.velocity_correction and not b.params.velocity_correction
+    assert a.params == b.params.replace(newmark_beta=FOX_GOODWIN_BETA, velocity_correction=True)
     differ = [k for k in a.field_names() if k not in ("scheme", "params") and getattr(a, k) != getattr(b, k)]
     assert differ == []
     assert base_task(new) == old and base_task(old) == old
 
 
 @pytest.mark.parametrize("new, old", sorted(FOX_GOODWIN_TASKS.items()))
-def test_a_fox_goodwin_episode_equals_the_older_id_with_beta_one_twelfth(new, old):
+def test_a_fox_goodwin_episode_equals_the_older_id_with_beta_one_twelfth_and_the_correction(new, old):
     env_a = gym.make(new, **SHORT)
-    env_b = gym.make(old, params={"newmark_beta": 1 / 12}, **SHORT)
+    env_b = gym.make(old, params={"newmark_beta": 1 / 12, "velocity_correction": True}, **SHORT)
     env_c = gym.make(old, **SHORT)
     oa, _ = env_a.reset(seed=11)
     ob, _ = env_b.reset(seed=11)
@@ -61,7 +62,7 @@ def test_the_scheme_wins_over_the_beta_of_a_passed_pair():
     assert gym.make("GearSpeed-v2", scheme="paper").unwrapped.config.params.newmark_beta == NEWMARK_BETA
     cfg = gym.make("GearSpeed-v2", scheme=None, params={"newmark_beta": 0.2}).unwrapped.config
     assert cfg.params.newmark_beta == 0.2
-    cfg = gym.make("GearSpeed-v1", scheme="fox-goodwin").unwrapped.config
+    cfg = gym.make("GearSpeed-v1", scheme="fox-goodwin-vc").unwrapped.config
     assert cfg == task_config("GearSpeed-v2")
     # the round trip through a dict (a run folder's config.json) keeps the scheme
     assert type(cfg).from_kwargs(cfg.to_dict()) == cfg
@@ -76,7 +77,7 @@ def test_a_bad_scheme_is_refused_naming_the_field_and_the_choices(bad):
 def test_a_params_dict_naming_another_beta_than_the_scheme_is_refused():
     """A config file's params.newmark_beta on a Fox-Goodwin id would otherwise be dropped without a word."""
     for beta in (0.25, 1 / 6):
-        with pytest.raises(ValueError, match=r"params.newmark_beta = .* conflicts with scheme='fox-goodwin'"):
+        with pytest.raises(ValueError, match=r"params.newmark_beta = .* conflicts with scheme='fox-goodwin-vc'"):
             task_config("GearSpeedDemand-v1", {"params": {"newmark_beta": beta}})
     # the same beta as the scheme's, the scheme changed with it, or no scheme: accepted
     assert task_config("GearSpeedDemand-v1", {"params": {"newmark_beta": 0.0833333}}).params.newmark_beta == 1 / 12
@@ -92,7 +93,7 @@ def test_a_params_dict_naming_another_beta_than_the_scheme_is_refused():
 
 
 def test_tol_on_a_fox_goodwin_task_names_the_scheme():
-    with pytest.raises(ValueError, match=r"tol .*scheme='fox-goodwin'.*scheme=\"paper\""):
+    with pytest.raises(ValueError, match=r"tol .*scheme='fox-goodwin-vc'.*scheme=\"paper\""):
         task_config("GearSpeedDemand-v1", {"tol": 1e-3})
     assert task_config("GearSpeedDemand-v1", {"tol": 1e-3, "scheme": "paper"}).tol == 1e-3
 
@@ -254,7 +255,7 @@ def test_scheme_none_stays_out_of_the_config_dict():
     d = task_config("GearSpeedDemand-v0").to_dict()
     assert "scheme" not in d
     assert type(task_config("GearSpeedDemand-v0")).from_kwargs(d) == task_config("GearSpeedDemand-v0")
-    assert task_config("GearSpeedDemand-v1").to_dict()["scheme"] == "fox-goodwin"
+    assert task_config("GearSpeedDemand-v1").to_dict()["scheme"] == "fox-goodwin-vc"
     assert task_config("GearSpeedDemand-v1", d).params.newmark_beta == FOX_GOODWIN_BETA
 
 

@@ -167,7 +167,7 @@ def test_env_scheme_single_and_vector_agree_bit_for_bit_down_to_low_omega(n):
         so, env = _env_run("GearSpeedDemand-v1", 60 + i, None, **kw)
         np.testing.assert_array_equal(obs[i], so)
     assert env.config.params.velocity_correction and env.config.scheme == "fox-goodwin-vc"
-    plain, _ = _env_run("GearSpeedDemand-v1", 60, None, omega_min=0.05, initial_omega=(0.06, 1.6))
+    plain, _ = _env_run("GearSpeedDemand-v1", 60, None, scheme="fox-goodwin", omega_min=0.05, initial_omega=(0.06, 1.6))
     assert not np.array_equal(plain, _env_run("GearSpeedDemand-v1", 60, None, **kw)[0])
 
 
@@ -176,7 +176,11 @@ def test_env_refuses_a_params_dict_that_contradicts_the_scheme():
 
     import gear_env  # noqa: F401
 
+    with pytest.raises(ValueError, match=r"params.velocity_correction = False conflicts with scheme='fox-goodwin-vc'"):
+        gym.make("GearSpeedDemand-v1", params={"newmark_beta": 1 / 12, "velocity_correction": False})
     with pytest.raises(ValueError, match=r"params.velocity_correction = True conflicts with scheme='fox-goodwin'"):
-        gym.make("GearSpeedDemand-v1", params={"newmark_beta": 1 / 12, "velocity_correction": True})
+        gym.make(
+            "GearSpeedDemand-v1", scheme="fox-goodwin", params={"newmark_beta": 1 / 12, "velocity_correction": True}
+        )
     env = gym.make("GearSpeedDemand-v1", scheme="fox-goodwin-vc", params=FG)  # a GearParams: the scheme wins
     assert env.unwrapped.config.params.velocity_correction

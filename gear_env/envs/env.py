@@ -181,8 +181,8 @@ class GearSpeedEnv(gym.Env):
     actuator dead time and a wear change of the pair within the episode), plus ``GearSpeedDemandLimit-v0``
     (Demand-v0 with a rate-limited speed-limit action) and the Fox-Goodwin ids ``GearSpeed-v2``,
     ``GearSpeedDemand-v1``, ``GearSpeedDemandLimit-v1``, ``GearSpeedDemandHard-v1`` (the four before them with
-    ``scheme="fox-goodwin"``: Newmark beta 1/12, the same cost per step, 6x less integration error;
-    ``gear_env.envs.tasks.FOX_GOODWIN_TASKS``). ``self.episode`` is the
+    ``scheme="fox-goodwin-vc"``: Newmark beta 1/12 with the velocity correction, the same cost per step, 10x less
+    integration error; ``gear_env.envs.tasks.FOX_GOODWIN_TASKS``). ``self.episode`` is the
     episode's scenario (an oracle may read it; the agent does not see it). ``info["cost"]`` (>= 0) sums
     the cost terms for safe-RL libraries.
 
@@ -203,8 +203,8 @@ class GearSpeedEnv(gym.Env):
       ``memory_steps=20`` (was 0: the observation gains ``trouble_omega``, ``trouble_recency``,
       ``prev_force_rms``, ``prev_contact_loss``); the shipped policy was retrained on it.
     * GearSpeed-v2, GearSpeedDemand-v1, GearSpeedDemandLimit-v1, GearSpeedDemandHard-v1 (issue #24): GearSpeed-v1,
-      GearSpeedDemand-v0, GearSpeedDemandLimit-v0 and GearSpeedDemandHard-v0 integrated with Newmark beta 1/12
-      (``scheme="fox-goodwin"``); the older ids are unchanged.
+      GearSpeedDemand-v0, GearSpeedDemandLimit-v0 and GearSpeedDemandHard-v0 integrated with Newmark beta 1/12 and
+      the velocity correction (``scheme="fox-goodwin-vc"``); the older ids are unchanged.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}

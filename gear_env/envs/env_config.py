@@ -135,8 +135,9 @@ class GearSpeedConfig(TableConfig):
             preset, same regime boundaries as the simulator's 128; see docs/ENVIRONMENT.md); or ``"auto"``: with
             Fox-Goodwin's beta 48, 64 or 80 per sub-environment and step by its contact loss in the step before
             (``gear_env.sim.integration.contact_steps``), with any other beta 64.
-        scheme: None (``params.newmark_beta`` as given), ``"paper"`` (beta 1/4) or ``"fox-goodwin"`` (beta 1/12, the
-            Fox-Goodwin ids' setting): sets ``params.newmark_beta``.
+        scheme: None (``params.newmark_beta`` and ``velocity_correction`` as given), ``"paper"`` (beta 1/4),
+            ``"fox-goodwin"`` (beta 1/12) or ``"fox-goodwin-vc"`` (beta 1/12 with the velocity correction, the
+            Fox-Goodwin ids' setting): sets ``params.newmark_beta`` and ``params.velocity_correction``.
         tol: None (default: fixed steps) or the error per mesh period in b0 units, in [1e-8, 0.1]:
             every mesh period is then integrated with contact changes located and Richardson-extrapolated
             N and 2N steps, N chosen per period per system (as ``GearSimulator(tol=)``);

@@ -313,10 +313,11 @@ FOX_GOODWIN_TASKS: dict[str, str] = {
     "GearSpeedDemandLimit-v1": "GearSpeedDemandLimit-v0",
     "GearSpeedDemandHard-v1": "GearSpeedDemandHard-v0",
 }
-"""The tasks integrated with Fox-Goodwin's Newmark beta (1/12; ``scheme="fox-goodwin"``) and the task each one is
-otherwise equal to: the same settings, spaces, rewards and cost per step, 6x less integration error (on the Demand
-ids every return rises by 0.03-0.17, and no ranking changes; docs/ENVIRONMENT.md). A new id, not a changed one,
-because the dynamics differ (Gymnasium's versioning rule): every published number of the older ids stays valid."""
+"""The tasks integrated with Fox-Goodwin's Newmark beta (1/12) and the velocity correction (``scheme="fox-goodwin-vc"``,
+``GearParams.velocity_correction``) and the task each one is otherwise equal to: the same settings, spaces, rewards
+and cost per step, 10x less integration error over the period-1 orbits (docs/ENVIRONMENT.md, "Integration
+accuracy"). A new id, not a changed one, because the dynamics differ (Gymnasium's versioning rule): every published
+number of the older ids stays valid."""
 TASK_SETTINGS: dict[str, dict[str, Any]] = {
     "GearSpeed-v0": {},
     "GearSpeed-v1": V1_SETTINGS,
@@ -325,7 +326,7 @@ TASK_SETTINGS: dict[str, dict[str, Any]] = {
     "GearSpeedDemandHard-v0": DEMAND_HARD_SETTINGS,
 }
 """Registered tasks and their settings (``gym.make(ID)`` uses these; keywords override them)."""
-FOX_GOODWIN_SETTINGS: dict[str, Any] = {"scheme": "fox-goodwin"}
+FOX_GOODWIN_SETTINGS: dict[str, Any] = {"scheme": "fox-goodwin-vc"}
 """What a Fox-Goodwin task adds to the settings of the task it integrates differently."""
 TASK_SETTINGS.update({new: {**TASK_SETTINGS[old], **FOX_GOODWIN_SETTINGS} for new, old in FOX_GOODWIN_TASKS.items()})
 
