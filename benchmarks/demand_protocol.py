@@ -16,8 +16,9 @@ against ``--reference`` (default: the shipped policy) with its CI. ``--runs`` ad
 ``best_model.zip``, or a spec such as ``pretrained``: the shipped run): per run the same row, and over
 the runs the IQM of the per-episode gap scores with its
 95 % stratified-bootstrap CI (rliable). ``--select`` prints the run whose mean validation return is best
-(the shipped run's rule). ``--cache DIR`` keeps each (policy, episode) result in DIR/<set>/<policy>.json, so
-baselines are rolled out once (a changed policy needs a fresh cache file: delete it). ``--config`` changes the
+(the shipped run's rule). ``--cache DIR`` keeps each (policy, episode) result in DIR/<set>_<task>_config-<digest of
+the task's settings>/<policy>.json, so baselines are rolled out once and a task whose settings change is rolled out
+again (a changed policy needs a fresh cache file: delete it). ``--config`` changes the
 task's settings (for instance the integration scheme); its results are cached apart from the task's, and
 ``--against-task`` adds the paired per-episode change of every policy against the task's own settings. On a
 Fox-Goodwin task (``--env GearSpeedDemand-v1``, ...), ``--against-base`` adds the paired change against the older
@@ -341,15 +342,15 @@ def _main(args: argparse.Namespace) -> int:
         return 0
     seeds = parse_seed_set(args.set)
 
-    def set_label(task: str) -> str:
-        return args.set.replace(":", "_") + ("" if task == DEMAND_TASKS[0] else f"_{task}")
-
-    base_label = set_label(env_id)
-    label = base_label
-    if settings:  # results under other settings never mix with the task's in the cache
-        fields = {k: v for k, v in cfg.to_dict().items() if k != "scheme"}  # params.newmark_beta says it
+    def set_label(task: str, task_cfg) -> str:
+        """The cache folder of (seed set, task, settings): results under other settings, or of a task whose
+        definition changed (a scheme, a setting), never mix with these."""
+        fields = {k: v for k, v in task_cfg.to_dict().items() if k != "scheme"}  # params says what a scheme sets
         digest = hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()[:12]
-        label += f"_config-{digest}"
+        return args.set.replace(":", "_") + ("" if task == DEMAND_TASKS[0] else f"_{task}") + f"_config-{digest}"
+
+    base_label = set_label(env_id, task_config(env_id))
+    label = set_label(env_id, cfg)
     cache = Path(args.cache) if args.cache else None
     specs = list(dict.fromkeys(["oracle", "fixed-best", *(args.policy or BASELINES[2:])]))
     runs = [str(Path(r) / "best_model.zip") if Path(r).is_dir() else r for r in args.runs]
@@ -378,7 +379,8 @@ def _main(args: argparse.Namespace) -> int:
         from gear_env.envs.tasks import base_task
 
         older = base_task(env_id)
-        base = {s: rollout(s, task_config(older), seeds, cache, set_label(older), older) for s in results}
+        base = {s: rollout(s, task_config(older), seeds, cache, set_label(older, task_config(older)), older)
+                for s in results}  # fmt: skip
         md_c, out["change_vs_base"] = change_table(base, results, (older, env_id))
         md += f"\n\nThe same episodes on {older}, and the paired change the scheme makes:\n\n{md_c}"
     if runs:

@@ -64,8 +64,9 @@ def episode(env_id: str, seed: int, actions: np.ndarray, **kw) -> tuple[np.ndarr
 
 
 def vector_rates(env_id: str, n: int, rounds: int, seconds: float) -> dict[str, list[float]]:
-    """Env-steps/s of ``GearSpeedVectorEnv(n)`` (random set-points, auto-reset), the paper's 64 steps and
-    Fox-Goodwin's 64 alternately, ``rounds`` times: CPU time of this process."""
+    """Env-steps/s of ``GearSpeedVectorEnv(n)`` (random set-points, auto-reset), the paper's 64 steps, Fox-Goodwin's
+    64 (plain and with the velocity correction) and the contact rule alternately, ``rounds`` times: CPU time of this
+    process."""
     from gear_env.envs.env_config import task_config
     from gear_env.envs.vector_env import GearSpeedVectorEnv
 
@@ -134,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--steps", type=int, default=20)
     ap.add_argument("--vector", type=int, default=0, metavar="N",
-                    help="also time GearSpeedVectorEnv(N), Fox-Goodwin 64 steps against 64 steps")  # fmt: skip
+                    help="also time GearSpeedVectorEnv(N), the Fox-Goodwin settings against 64 steps")  # fmt: skip
     ap.add_argument("--rounds", type=int, default=5, help="rounds of the vector timing (5)")
     ap.add_argument("--task-cost", type=int, default=0, metavar="N",
                     help="also: N episodes of --policy on the task and its Fox-Goodwin id, interleaved "
@@ -197,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
         a = np.array(rates["64 steps (default)"])
         print(f"\nGearSpeedVectorEnv({args.vector}), {args.rounds} interleaved rounds (load average "
               f"{os.getloadavg()[0]:.1f}): 64 steps {np.median(a):.0f} env-steps/s")  # fmt: skip
-        for name in ("Fox-Goodwin 64 steps", "Fox-Goodwin auto"):
+        for name in ("Fox-Goodwin 64 steps", "Fox-Goodwin-vc 64 steps", "Fox-Goodwin auto"):
             ratio = np.array(rates[name]) / a
             print(f"  {name}: {np.median(rates[name]):.0f} env-steps/s; ratio {np.median(ratio):.2f} "
                   f"[{ratio.min():.2f}, {ratio.max():.2f}]")  # fmt: skip
