@@ -95,6 +95,19 @@ def test_step_limit_is_where_the_linear_step_map_turns_unstable():
         GearSimulator(VC, "dynamic", 64, 0.16)  # Fox-Goodwin's 64 steps hold down to omega 0.158, these not
 
 
+def test_step_limit_is_kept_per_linear_system_and_follows_what_enters_it():
+    """The limit is kept across the fields a plant family's duty cycle and wear change (torques, transmission error),
+    which leave M, C and K alone, and recomputed for any field that enters them (here the damping and the stiffness
+    variation): each kept value equals a fresh computation."""
+    from gear_env.sim.linear import _step_limit
+
+    for p in (VC.replace(T_p=0.4 * VC.T_p, T_g=0.4 * VC.T_g), VC.with_te_scale(2.0), FG.replace(T_g=2.0 * FG.T_g)):
+        assert newmark_step_limit(p) == _step_limit(p)
+    assert newmark_step_limit(VC.replace(T_p=0.4 * VC.T_p, T_g=0.4 * VC.T_g)) == newmark_step_limit(VC)
+    for p in (VC.replace(xi_m=0.3), VC.replace(kappa=0.35), FG.replace(k_p=1e8)):
+        assert newmark_step_limit(p) == _step_limit(p) != newmark_step_limit(VC if p.velocity_correction else FG)
+
+
 def test_run_continued_from_the_state_and_samples_match_records():
     """The state carried between calls keeps Newmark's velocity; each call starts the scheme from it with the
     acceleration the equations give there, which under the correction (whose accelerations balance the corrected

@@ -113,7 +113,10 @@ class PlantFamily:
     def plant(base: GearParams, factors: Mapping[str, float], duty: float = 1.0) -> GearParams:
         """The gear pair with ``factors`` applied to ``base`` and the load times ``duty``."""
         f = float(factors["load"]) * float(duty)
-        return base.replace(T_p=base.T_p * f, T_g=base.T_g * f).with_te_scale(float(factors["e_m1"]))
+        te = float(factors["e_m1"])
+        if base.te_harmonics or not (math.isfinite(te) and te >= 0.0):  # with_te_scale checks and scales a series
+            return base.replace(T_p=base.T_p * f, T_g=base.T_g * f).with_te_scale(te)
+        return base.replace(T_p=base.T_p * f, T_g=base.T_g * f, e_m1=base.e_m1 * te)  # the same pair, one validation
 
     def check(self, base: GearParams, duty_levels: Sequence[float], min_static_force: float) -> None:
         """Refuse a family whose draws leave the simulator's valid range (checked at the corners).

@@ -16,8 +16,7 @@ with b = dB_d/dq = tan(a0) dA_d/dq = tan(a0) (-1, 0, 1, 0, 0) at the nominal cen
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from functools import lru_cache
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -98,14 +97,27 @@ def newmark_step_limit(params: GearParams | None = None) -> float:
     (:func:`vc_amplification`) stays stable, a little below Fox-Goodwin's at this model's damping. The limit
     returned is :data:`STABILITY_MARGIN` times that.
     """
-    return _step_limit(params or GearParams())
-
-
-@lru_cache(maxsize=256)
-def _step_limit(p: GearParams) -> float:
-    """:func:`newmark_step_limit` of ``p``, kept per parameter set (the plant families draw the same pairs again)."""
+    p = params or GearParams()
     if p.newmark_beta >= 0.25:
         return math.inf
+    key = tuple(getattr(p, f.name) for f in fields(p) if f.init and f.name not in _LOAD_FIELDS)
+    if key not in _STEP_LIMITS:
+        if len(_STEP_LIMITS) >= 1024:
+            _STEP_LIMITS.clear()
+        _STEP_LIMITS[key] = _step_limit(p)
+    return _STEP_LIMITS[key]
+
+
+_LOAD_FIELDS = frozenset({"T_p", "T_g", "e_m1", "phi_e", "te_harmonics", "T_p1", "T_g1", "phi_Tp", "phi_Tg"})
+"""Fields that move only the forcing (torques, transmission error), not the linearised system's M, C, K: a plant
+family's load duty cycle and wear change them every few steps, and the step limit is kept across them."""
+
+
+_STEP_LIMITS: dict[tuple, float] = {}
+
+
+def _step_limit(p: GearParams) -> float:
+    """:func:`newmark_step_limit` of ``p`` (beta < 1/4), computed; the caller keeps it per linearised system."""
     phi = np.linspace(0.0, 2.0 * math.pi, 1024, endpoint=False)
     peak = float(np.max(p.stiffness_factor(phi)))
     w2 = 0.0
