@@ -30,14 +30,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tols", type=float, nargs="*", default=[3e-3, 1e-3, 3e-4], help="tol modes (none: no tol)")
     ap.add_argument("--fox-goodwin", type=int, nargs="*", default=[], metavar="N",
                     help="also N Fox-Goodwin steps per period (beta 1/12; the stability floor if higher)")  # fmt: skip
+    ap.add_argument("--fox-goodwin-vc", type=int, nargs="*", default=[], metavar="N",
+                    help="also N steps of Fox-Goodwin with the velocity correction (the floor if higher)")  # fmt: skip
     ap.add_argument("--periods", type=int, default=40, help="Poincare points compared (40)")
     args = ap.parse_args(argv)
     fg = GearParams(newmark_beta=FOX_GOODWIN_BETA)
+    vc = fg.replace(velocity_correction=True)
     print(f"largest error over {args.periods} Poincare points (b0), and the step count N of each mode")
     print(
         "model     omega | automatic fixed  | "
         + " | ".join(
-            [f"tol {t:g}".ljust(16) for t in args.tols] + [f"fox-goodwin {n}".ljust(16) for n in args.fox_goodwin]
+            [f"tol {t:g}".ljust(16) for t in args.tols]
+            + [f"fox-goodwin {n}".ljust(16) for n in args.fox_goodwin]
+            + [f"fox-goodwin-vc {n}".ljust(16) for n in args.fox_goodwin_vc]
         )
     )
     for model in ("constant", "dynamic"):
@@ -49,6 +54,7 @@ def main(argv: list[str] | None = None) -> int:
             cells = []
             modes = [(GearParams(), default_steps_per_period(w), None)] + [(GearParams(), None, t) for t in args.tols]
             modes += [(fg, max(n, min_steps_per_period(fg, w)), None) for n in args.fox_goodwin]
+            modes += [(vc, max(n, min_steps_per_period(vc, w)), None) for n in args.fox_goodwin_vc]
             for par, nsp, tol in modes:
                 s = GearSimulator(par, model, nsp, w, x0, tol=tol)
                 iv = s.advance(args.periods)

@@ -95,6 +95,16 @@ def test_step_limit_is_where_the_linear_step_map_turns_unstable():
         GearSimulator(VC, "dynamic", 64, 0.16)  # Fox-Goodwin's 64 steps hold down to omega 0.158, these not
 
 
+def test_automatic_step_count_follows_the_corrected_scheme_and_its_floor():
+    from gear_env.sim.linear import min_steps_per_period
+    from gear_env.sim.simulator import VC_STEPS_PER_PERIOD, auto_steps_rule, default_steps_per_period
+
+    assert default_steps_per_period(1.2, VC) == VC_STEPS_PER_PERIOD == 68
+    assert default_steps_per_period(0.12, VC) == min_steps_per_period(VC, 0.12) > 68  # the floor binds low down
+    assert "fox-goodwin-vc" in auto_steps_rule(VC) and "fox-goodwin-vc" not in auto_steps_rule(FG)
+    assert GearSimulator(VC, "dynamic", omega=1.2).steps_per_period == 68
+
+
 def test_step_limit_is_kept_per_linear_system_and_follows_what_enters_it():
     """The limit is kept across the fields a plant family's duty cycle and wear change (torques, transmission error),
     which leave M, C and K alone, and recomputed for any field that enters them (here the damping and the stiffness

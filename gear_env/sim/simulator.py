@@ -55,11 +55,11 @@ raised to the stability floor below omega ~ 0.11: on the period-1 orbits of docs
 accurate as the paper's scheme at its automatic 192 (p95 4.6e-4 against 5.8e-4 b0, max 8.8e-4 against 1.0e-3) at
 about twice the mesh periods per second, and below 1e-3 b0 down to omega 0.12."""
 
-VC_STEPS_PER_PERIOD = 72
+VC_STEPS_PER_PERIOD = 68
 """Steps per mesh period of the automatic choice under Fox-Goodwin with the velocity correction
-(``GearParams.velocity_correction``), raised to its stability floor at low omega: on the period-1 orbits of
-docs/SIMULATOR.md it is more accurate than the paper's scheme at its automatic 192 (p95 and max) at about 2.5x the
-mesh periods per second."""
+(``GearParams.velocity_correction``), raised to its stability floor below omega ~ 0.16: on the period-1 orbits of
+docs/SIMULATOR.md it is more accurate than the paper's scheme at its automatic 192 (p95 3.8e-4 against 5.8e-4 b0,
+max 8.1e-4 against 1.0e-3) with 2.8x fewer steps."""
 
 
 STATE_NAMES = ("X_p", "Y_p", "X_g", "Y_g", "U", "dX_p", "dY_p", "dX_g", "dY_g", "dU")
@@ -129,8 +129,8 @@ def default_steps_per_period(omega: float, params: GearParams | None = None) -> 
 
     Fox-Goodwin (``newmark_beta`` = ``FOX_GOODWIN_BETA``): ``max(FOX_GOODWIN_STEPS_PER_PERIOD,
     min_steps_per_period(params, omega))``: 88 steps, more below omega ~ 0.11 where the scheme needs them to be
-    stable; with ``velocity_correction``, ``max(VC_STEPS_PER_PERIOD, min_steps_per_period(params, omega))``: 72
-    steps, more below omega ~ 0.15.
+    stable; with ``velocity_correction``, ``max(VC_STEPS_PER_PERIOD, min_steps_per_period(params, omega))``: 68
+    steps, more below omega ~ 0.16.
     """
     w = check_omega(omega)
     if params is not None and params.velocity_correction:
