@@ -66,7 +66,7 @@ def reward_map(
     fields = config_to_dict(base)
     fields.pop("action_range")  # always None here (undisturbed_config); kept out so that the keys of maps cached
     # before the setting existed still match
-    fields.pop("scheme", None)  # params.newmark_beta says it (a scheme only sets it)
+    fields.pop("scheme", None)  # params.newmark_beta and velocity_correction say it (a scheme only sets them)
     key_src = json.dumps({"v": 1, "config": fields, "n": len(omegas)}, sort_keys=True, default=str)
     key = hashlib.sha256(key_src.encode()).hexdigest()[:24]
     if key in _MAP_CACHE:

@@ -19,7 +19,8 @@ Fox-Goodwin ids keep 64).
     python benchmarks/env_tol.py --task-cost 20 --policy pretrained   # the cost on the task as a policy runs it
 
 ``--task-cost N`` runs N episodes of ``--policy`` on the task, on its Fox-Goodwin id (``GearSpeedDemand-v1`` for
-``GearSpeedDemand-v0``) and on that id with ``steps_per_period="auto"``, interleaved per episode, and prints the CPU
+``GearSpeedDemand-v0``; the corrected scheme since 2026-12-07, plain Fox-Goodwin before) and on that id with
+``steps_per_period="auto"``, interleaved per episode, and prints the CPU
 ratios and the auto run's mean steps per mesh period (the counts chosen for steps 2 to the last of each episode).
 
 ``--json FILE`` writes the run's record (benchmarks/bench_record.py; benchmarks/make_tables.py reads it).

@@ -1,7 +1,8 @@
-"""The Fox-Goodwin tasks (GearSpeed-v2, GearSpeedDemand-v1, ...): the older task with Newmark beta 1/12.
+"""The Fox-Goodwin tasks (GearSpeed-v2, GearSpeedDemand-v1, ...): the older task with Newmark beta 1/12 and the
+velocity correction.
 
 A new id is the older id plus ``scheme="fox-goodwin-vc"``: its config equals the older one's with that scheme, an
-episode equals one of the older id made with that beta (bit for bit), the ``scheme`` setting wins over the beta
+episode equals one of the older id made with that scheme (bit for bit), the ``scheme`` setting wins over the beta
 of whatever pair a user passes, and the shipped policy and recipe of the older id serve the new one.
 """
 

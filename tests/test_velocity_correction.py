@@ -136,7 +136,7 @@ def test_run_continued_from_the_state_and_samples_match_records():
     assert not np.array_equal(whole.poincare[-1, 5:10], one.state[5:10])
 
 
-def test_analyses_on_the_step_jacobian_refuse_it_naming_the_field():
+def test_analyses_on_the_step_jacobian_refuse_it_naming_the_field(monkeypatch):
     from gear_env.analysis.continuation import OrbitMap
     from gear_env.analysis.floquet import PeriodMap, find_periodic_orbit
 
@@ -146,6 +146,14 @@ def test_analyses_on_the_step_jacobian_refuse_it_naming_the_field():
         find_periodic_orbit(1.2, "dynamic", params=VC)
     with pytest.raises(ValueError, match="velocity_correction"):
         OrbitMap("dynamic", VC, 1)
+    from gear_env.analysis import stability as ST
+
+    def no_work(*_a, **_k):
+        raise AssertionError("the stability map started work before refusing")
+
+    monkeypatch.setattr(ST, "compute_stability_map", no_work)
+    with pytest.raises(ValueError, match="the stability map takes the plain Newmark step"):
+        ST.stability_map("dynamic", params=VC, cache=False)
     with pytest.raises(ValueError, match="tol"):
         GearSimulator(VC, "dynamic", omega=1.2, tol=1e-3)
 
@@ -192,6 +200,36 @@ def test_env_scheme_single_and_vector_agree_bit_for_bit_down_to_low_omega(n):
     assert env.config.params.velocity_correction and env.config.scheme == "fox-goodwin-vc"
     plain, _ = _env_run("GearSpeedDemand-v1", 60, None, scheme="fox-goodwin", omega_min=0.05, initial_omega=(0.06, 1.6))
     assert not np.array_equal(plain, _env_run("GearSpeedDemand-v1", 60, None, **kw)[0])
+
+
+def test_env_rows_below_the_corrected_limit_take_the_plain_step_at_the_plain_beta(monkeypatch):
+    """A row whose interval goes below the corrected scheme's stable omega at its step count leaves the correction
+    for that interval: between the two limits (omega 0.158-0.171 at 64 steps) it keeps beta 1/12 with the plain
+    step, lower down it takes the plain step's stable beta; the plant's constants come back after the call."""
+    from gear_env.envs.env_core import GearSpeedCore as EnvCore
+    from gear_env.sim.linear import min_steps_per_period
+    from gear_env.sim.params import C_VC
+
+    seen = []
+    fixed = EnvCore._integrate_fixed
+
+    def spy(self, rows, w0, w1, periods, nsp):
+        w = float(np.min(np.minimum(w0, w1)))
+        seen.append((w, float(self.C[rows[0], C_BETA]), float(self.C[rows[0], C_VC])))
+        return fixed(self, rows, w0, w1, periods, nsp)
+
+    monkeypatch.setattr(EnvCore, "_integrate_fixed", spy)
+    for w in (0.165, 0.14, 0.5):
+        env, _ = _env_run("GearSpeedDemand-v1", 3, None, omega_min=0.1, initial_omega=(w, w), max_domega=1e-3)
+        assert env.shape[0] == len(ENV_ACTIONS) + 1
+    by_w = {round(w, 3): (b, v) for w, b, v in seen}
+    mid = [bv for w, bv in by_w.items() if 0.159 < w < 0.17]
+    low = [bv for w, bv in by_w.items() if w < 0.157]
+    high = [bv for w, bv in by_w.items() if w > 0.2]
+    assert mid and all(b == FOX_GOODWIN_BETA and v == 0.0 for b, v in mid)
+    assert low and all(b > FOX_GOODWIN_BETA and v == 0.0 for b, v in low)
+    assert high and all(b == FOX_GOODWIN_BETA and v == 1.0 for b, v in high)
+    assert min_steps_per_period(FG, 0.165) <= 64 < min_steps_per_period(VC, 0.165)
 
 
 def test_env_refuses_a_params_dict_that_contradicts_the_scheme():

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..errors import SimulationDivergedError
 from ..io import atomic_write_text
-from ..sim.params import GearParams, model_code
+from ..sim.params import GearParams, model_code, refuse_velocity_correction
 from ..sim.simulator import (
     GearSimulator,
     auto_steps_rule,
@@ -351,6 +351,7 @@ def stability_map(
     if not isinstance(p, GearParams):
         raise ValueError(f"params must be a GearParams, got {type(p).__name__}")
     model_code(model)
+    refuse_velocity_correction(p, "the stability map")  # Floquet multipliers of the plain step: before any work
     steps = None if steps_per_period is None else check_steps(steps_per_period)
     grid = _grid(omega_min, omega_max, points)
     for wi in grid:  # a conditionally stable Newmark beta (GearParams.newmark_beta): refused before any work

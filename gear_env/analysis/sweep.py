@@ -56,7 +56,8 @@ def steps_for(omega: float, base: int | None = None, adaptive: bool = False, par
     """Newmark steps per mesh period used at ``omega``.
 
     ``base=None`` (the default): the simulator's :func:`~gear_env.sim.simulator.default_steps_per_period`
-    of ``params``' scheme (192, more below omega ~ 0.27; Fox-Goodwin 88). A fixed ``base`` is used as is, or with
+    of ``params``' scheme (192, more below omega ~ 0.27; Fox-Goodwin 88; with the velocity correction 68). A fixed
+    ``base`` is used as is, or with
     ``adaptive=True`` as
     ``max(base, ceil(base * 0.5 / omega))`` (the natural-time step ``h = 2 pi / (omega N)`` capped at
     its value at omega = 0.5).

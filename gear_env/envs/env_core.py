@@ -25,7 +25,7 @@ from .._numba_cache import announce_compile
 from ..sim import kernels as K
 from ..sim.integration import CONTACT_STEPS, TOL_N_START, contact_steps, integrate
 from ..sim.linear import stability_frequency, stable_betas
-from ..sim.params import C_BETA, C_FS, FOX_GOODWIN_BETA, GearParams, model_code, refuse_extensions
+from ..sim.params import C_BETA, C_FS, C_VC, FOX_GOODWIN_BETA, GearParams, model_code, refuse_extensions
 from . import env_kernels as EK
 from . import env_terms as ET
 from . import force_level as FL
@@ -210,6 +210,9 @@ class GearSpeedCore:
         # to it per row and interval (Fox-Goodwin at low omega), so a row's steps depend only on its own omega
         self.beta = np.full(n, float(cfg.params.newmark_beta))  # each row's own Newmark beta
         self.w_stab = np.full(n, stability_frequency(cfg.params))  # Omega_max / margin, 0: unconditionally stable
+        # the same for the plain Newmark step (differs under the velocity correction, whose limit is lower): the
+        # beta a row moves to, with the correction off for that interval
+        self.w_plain = np.full(n, stability_frequency(cfg.params, plain=True))
         self.w_floor = np.zeros(n)  # below w_floor / N a row's beta is unstable at N steps per mesh period
         self._set_floor(slice(None))
         self._pc_buf = np.zeros((1, cfg.periods_per_step, K.N_PC))
@@ -284,8 +287,8 @@ class GearSpeedCore:
         loss (time out of drive-side contact) in the interval just integrated and whether its last Poincare
         samples repeat (period 1 within :data:`AUTO_PERIODIC_DEFECT`): :func:`~gear_env.sim.integration.contact_steps`
         for Fox-Goodwin's beta, else 64. A failed row keeps its count. (:meth:`_integrate` raises a count below 64
-        to 64 for an interval that reaches below the beta's stable omega at that count, about 0.21 at 48 steps, so
-        that the row keeps its beta there as at the tasks' 64 steps.)"""
+        to 64 for an interval that reaches below the beta's stable omega at that count, at 48 steps about 0.21
+        (0.23 with the velocity correction), so that the row keeps its scheme there as at the tasks' 64 steps.)"""
         k = min(pc.shape[1], AUTO_PERIODIC_SAMPLES)
         if len(rows) == 1:  # plain floats (the single env)
             r = int(rows[0])
@@ -322,7 +325,9 @@ class GearSpeedCore:
         unstable at this step count) takes, for this interval, the beta closest to its own that is stable there
         (:func:`gear_env.sim.linear.stable_betas`, towards the paper's 1/4). The cost per step stays that of
         the fixed count, all rows are stepped together, and a row's beta depends only on its own interval (so
-        single and vector env agree bit for bit)."""
+        single and vector env agree bit for bit). Under the velocity correction a row leaves it where its own limit
+        is exceeded (``w_stab``) and takes the plain Newmark step there, of beta 1/12 where plain Fox-Goodwin is
+        stable and the beta :func:`stable_betas` gives for the plain step (``w_plain``) below."""
         if len(rows) == 1:  # the single env: plain floats
             if min(float(w0[0]), float(w1[0])) >= self.w_floor[rows[0]] / nsp:
                 return self._integrate_fixed(rows, w0, w1, periods, nsp)
@@ -333,11 +338,14 @@ class GearSpeedCore:
                 return self._integrate_fixed(rows, w0, w1, periods, nsp)
         mr = rows[moved]
         w_low = np.minimum(np.asarray(w0, float)[moved], np.asarray(w1, float)[moved])
-        self.C[mr, C_BETA] = stable_betas(self.beta[mr], self.w_stab[mr], w_low, nsp)
+        vc = self.C[mr, C_VC].copy()  # the velocity correction (its own, lower limit) is left for the interval
+        self.C[mr, C_BETA] = stable_betas(self.beta[mr], self.w_plain[mr], w_low, nsp)
+        self.C[mr, C_VC] = 0.0
         try:
             return self._integrate_fixed(rows, w0, w1, periods, nsp)
         finally:
             self.C[mr, C_BETA] = self.beta[mr]
+            self.C[mr, C_VC] = vc
 
     def _integrate_fixed(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int, nsp: int):
         """:meth:`_integrate` with ``nsp`` fixed steps per mesh period for every row."""
@@ -610,6 +618,7 @@ class GearSpeedCore:
         self.C[r] = p.consts
         self.beta[r] = p.newmark_beta
         self.w_stab[r] = stability_frequency(p)
+        self.w_plain[r] = stability_frequency(p, plain=True)
         self._set_floor(r)
         self.fs[r] = self.C[r, C_FS]
         x0 = np.zeros(K.NSTATE)

@@ -316,9 +316,9 @@ def _tol(label: str, v: Any, cfg: Any) -> float | None:
         return None
     if cfg.params.newmark_beta != NEWMARK_BETA:
         raise ValueError(
-            f"{label} (error control) takes only the paper's Newmark beta (params.newmark_beta = {NEWMARK_BETA}), "
-            f"got {cfg.params.newmark_beta:.6g} (scheme={cfg.scheme!r}); leave tol None (fixed steps) or pass "
-            f'scheme="paper"'
+            f"{label} (error control) takes only the paper's Newmark beta (params.newmark_beta = {NEWMARK_BETA}, "
+            f"params.velocity_correction = False), got {cfg.params.newmark_beta:.6g} (scheme={cfg.scheme!r}); leave "
+            f'tol None (fixed steps) or pass scheme="paper"'
         )
     return check_real(label, v, 1e-8, 0.1)
 

@@ -86,7 +86,7 @@ STABILITY_MARGIN = 0.9
 dynamic model's geometry and the friction extension move the frequencies a little)."""
 
 
-def newmark_step_limit(params: GearParams | None = None) -> float:
+def newmark_step_limit(params: GearParams | None = None, plain: bool = False) -> float:
     """Largest stable Newmark step in natural time (s = omega_n t) for ``params.newmark_beta``.
 
     beta = 1/4 (the paper's average acceleration) is unconditionally stable: ``math.inf``. For beta < 1/4
@@ -95,16 +95,18 @@ def newmark_step_limit(params: GearParams | None = None) -> float:
     contact with the mesh stiffness at its peak over the mesh cycle, taken over both backlash models. With
     ``params.velocity_correction`` the limit is the largest step up to which the damped linearised system's step
     (:func:`vc_amplification`) stays stable, a little below Fox-Goodwin's at this model's damping. The limit
-    returned is :data:`STABILITY_MARGIN` times that.
+    returned is :data:`STABILITY_MARGIN` times that. ``plain``: the limit of the plain Newmark step of
+    ``params.newmark_beta`` (the correction ignored; what a step that the environments move off beta 1/12 takes).
     """
     p = params or GearParams()
     if p.newmark_beta >= 0.25:
         return math.inf
-    key = tuple(getattr(p, f.name) for f in fields(p) if f.init and f.name not in _LOAD_FIELDS)
+    vc = bool(p.velocity_correction and not plain)
+    key = tuple(getattr(p, f.name) for f in fields(p) if f.init and f.name not in _LOAD_FIELDS) + (vc,)
     if key not in _STEP_LIMITS:
         if len(_STEP_LIMITS) >= 1024:
             _STEP_LIMITS.clear()
-        _STEP_LIMITS[key] = _step_limit(p)
+        _STEP_LIMITS[key] = _step_limit(p, vc)
     return _STEP_LIMITS[key]
 
 
@@ -116,8 +118,10 @@ family's load duty cycle and wear change them every few steps, and the step limi
 _STEP_LIMITS: dict[tuple, float] = {}
 
 
-def _step_limit(p: GearParams) -> float:
-    """:func:`newmark_step_limit` of ``p`` (beta < 1/4), computed; the caller keeps it per linearised system."""
+def _step_limit(p: GearParams, vc: bool | None = None) -> float:
+    """:func:`newmark_step_limit` of ``p`` (beta < 1/4; with the velocity correction if ``vc``, default
+    ``p.velocity_correction``), computed; the caller keeps it per linearised system."""
+    vc = p.velocity_correction if vc is None else vc
     phi = np.linspace(0.0, 2.0 * math.pi, 1024, endpoint=False)
     peak = float(np.max(p.stiffness_factor(phi)))
     w2 = 0.0
@@ -129,7 +133,7 @@ def _step_limit(p: GearParams) -> float:
         w2 = max(w2, float(np.max(np.abs(np.linalg.eigvals(np.linalg.solve(M, K))))))
         systems.append((M, C, K))
     h = 1.0 / (math.sqrt(0.25 - p.newmark_beta) * math.sqrt(w2))
-    if p.velocity_correction:
+    if vc:
         h = min(_vc_limit_kept(M, C, K, h) for M, C, K in systems)
     return STABILITY_MARGIN * h
 
@@ -194,16 +198,21 @@ def stable_beta(params: GearParams | None, omega: float, steps_per_period: int) 
     beta = 1/4 - (STABILITY_MARGIN / (Omega_max h))^2. The environments use it to keep their step count
     (and cost) where a conditionally stable beta would need more steps at low omega; the scheme then moves
     from Fox-Goodwin towards the paper's average acceleration (error between the two; docs/SIMULATOR.md).
+    The beta of the plain Newmark step: with ``params.velocity_correction`` the environments leave the corrected
+    step where its own (lower) limit is exceeded and take this beta, 1/12 itself where plain Fox-Goodwin is stable.
     """
     p = params or GearParams()
-    return float(stable_betas(p.newmark_beta, stability_frequency(p), np.array([omega], float), steps_per_period)[0])
+    w = stability_frequency(p, plain=True)
+    return float(stable_betas(p.newmark_beta, w, np.array([omega], float), steps_per_period)[0])
 
 
-def stability_frequency(params: GearParams | None = None) -> float:
+def stability_frequency(params: GearParams | None = None, plain: bool = False) -> float:
     """Omega_max / :data:`STABILITY_MARGIN` (units of omega_n) for the stability limit of a Newmark beta < 1/4:
-    the step h is stable with margin for beta >= 1/4 - 1 / (this h)^2. 0.0 for the paper's beta (no limit)."""
+    the step h is stable with margin for beta >= 1/4 - 1 / (this h)^2. 0.0 for the paper's beta (no limit). With
+    ``params.velocity_correction`` (and not ``plain``) the frequency that gives the corrected step's limit
+    (:func:`newmark_step_limit`) the same way at beta 1/12: where to leave the corrected scheme."""
     p = params or GearParams()
-    h = newmark_step_limit(p)
+    h = newmark_step_limit(p, plain)
     if not math.isfinite(h):
         return 0.0
     return 1.0 / (math.sqrt(0.25 - p.newmark_beta) * h)

@@ -144,8 +144,9 @@ def refuse_velocity_correction(params: GearParams, where: str) -> None:
     the plain Newmark step (Floquet multipliers, continuation) do not carry it."""
     if params.velocity_correction:
         raise ValueError(
-            f"{where} takes the plain Newmark step (GearParams.velocity_correction = False; its Jacobian is that "
-            "step's): use scheme 'fox-goodwin' (beta 1/12) or 'paper' for it"
+            f"{where} takes the plain Newmark step (GearParams.velocity_correction = False): the corrected scheme "
+            "carries Newmark's velocity but reports the corrected one, so its period map is not a map of its state "
+            "and its Jacobian not the plain step's; use scheme 'fox-goodwin' (beta 1/12) or 'paper' for it"
         )
 
 
@@ -297,8 +298,9 @@ class GearParams:
             feel; with this True they are evaluated with v - (h/12)(a_new - a_old) instead (the bias removed to
             O(h^3)), at the same cost per step. The Poincare samples and recorded trajectories hold that
             corrected velocity; the state carried from step to step (``GearSimulator.state``) keeps Newmark's
-            velocity, so a run continued from it is the same run. Fixed steps only: ``tol``, the Floquet and
-            continuation analyses (exact Jacobian of the step) refuse it. Left out of :meth:`to_dict` at False.
+            velocity. Each call restarts the scheme from the state with the acceleration of that state, so a run
+            continued from it differs from an uninterrupted one by ~1e-6 b0. Fixed steps only: ``tol``, the Floquet
+            and continuation analyses and the stability map refuse it. Left out of :meth:`to_dict` at False.
     """
 
     pressure_angle_deg: float = 20.0

@@ -370,10 +370,11 @@ class GearSimulator:
                 "tol (error control) does not take a torque fluctuation (GearParams.T_p1, T_g1 > 0): "
                 "its periods restart the mesh phase; give steps_per_period instead"
             )
-        if self.tol is not None and self.params.newmark_beta != NEWMARK_BETA:
+        if self.tol is not None and (self.params.newmark_beta != NEWMARK_BETA or self.params.velocity_correction):
             raise ValueError(
-                f"tol (error control) takes only the paper's Newmark beta (GearParams.newmark_beta = {NEWMARK_BETA}), "
-                f"got {self.params.newmark_beta:.6g}; give steps_per_period instead"
+                f"tol (error control) takes only the paper's Newmark beta (GearParams.newmark_beta = {NEWMARK_BETA}, "
+                f"velocity_correction = False), got {self.params.newmark_beta:.6g} and "
+                f"{self.params.velocity_correction}; give steps_per_period instead"
             )
         self.auto_steps = steps_per_period is None
         self.steps_per_period = resolve_steps(steps_per_period, check_omega(omega), self.params)
