@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from env_runs import env_run
 
 from gear_env import GearParams, GearSimulator, simulate, simulate_batch
 from gear_env.sim.linear import min_steps_per_period, natural_frequencies, newmark_step_limit
@@ -134,30 +135,6 @@ def test_floquet_tangent_follows_the_scheme():
 ENV_ACTIONS = np.array([-1.0, -1.0, 0.2, 0.35, -0.1, 0.5], np.float32)  # set-points down to omega_min, then up
 
 
-def _env_run(env_id: str, seed: int, n: int | None = None, **kw):
-    import gymnasium as gym
-
-    import gear_env  # noqa: F401  (registers the ids)
-    from gear_env.envs.env_config import task_config
-    from gear_env.envs.vector_env import GearSpeedVectorEnv
-
-    if n is None:
-        env = gym.make(env_id, **kw)
-        o, _ = env.reset(seed=seed)
-        obs = [o]
-        for a in ENV_ACTIONS:
-            o, *_ = env.step(np.array([a], np.float32))
-            obs.append(o)
-        return np.array(obs), env.unwrapped
-    vec = GearSpeedVectorEnv(n, task_config(env_id, kw))
-    o, _ = vec.reset(seed=[seed + i for i in range(n)])
-    obs = [o]
-    for a in ENV_ACTIONS:
-        o, *_ = vec.step(np.full((n, 1), a, np.float32))
-        obs.append(o)
-    return np.stack(obs, 1), vec
-
-
 @pytest.mark.parametrize("n", [3, 9])  # 9 rows: the SIMD lanes
 def test_env_with_fox_goodwin_keeps_its_steps_and_moves_beta_at_low_omega(n, monkeypatch):
     """GearSpeedDemand-v0 with Fox-Goodwin at the default 64 steps, set-points down to the lowest speeds,
@@ -181,12 +158,12 @@ def test_env_with_fox_goodwin_keeps_its_steps_and_moves_beta_at_low_omega(n, mon
 
     monkeypatch.setattr(EnvCore, "_integrate_fixed", spy)
     kw = {"params": FG.to_dict(), "omega_min": 0.05, "initial_omega": (0.06, 0.5)}
-    obs, vec = _env_run("GearSpeedDemand-v0", 40, n, **kw)
+    obs, vec = env_run("GearSpeedDemand-v0", 40, ENV_ACTIONS, n, **kw)
     assert np.isfinite(obs).all()
     assert set(counts) == {64} and any(moved) and not all(moved)  # beta moved for the low-omega rows only
     assert (vec._core.C[:, C_BETA] == FOX_GOODWIN_BETA).all()
     for i in (0, n - 1):
-        so, _ = _env_run("GearSpeedDemand-v0", 40 + i, None, **kw)
+        so, _ = env_run("GearSpeedDemand-v0", 40 + i, ENV_ACTIONS, None, **kw)
         np.testing.assert_array_equal(obs[i], so)
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from env_runs import env_run
 
 from gear_env import GearParams, GearSimulator, simulate
 from gear_env.sim.linear import matrices, newmark_step_limit, vc_amplification
@@ -161,45 +162,21 @@ def test_analyses_on_the_step_jacobian_refuse_it_naming_the_field(monkeypatch):
 ENV_ACTIONS = np.linspace(-1.0, 1.0, 12)
 
 
-def _env_run(env_id, seed, n=None, **kw):
-    import gymnasium as gym
-
-    import gear_env  # noqa: F401  (registers the ids)
-    from gear_env.envs.env_config import task_config
-    from gear_env.envs.vector_env import GearSpeedVectorEnv
-
-    if n is None:
-        env = gym.make(env_id, **kw)
-        o, _ = env.reset(seed=seed)
-        obs = [o]
-        for a in ENV_ACTIONS:
-            o, *_ = env.step(np.array([a], np.float32))
-            obs.append(o)
-        return np.array(obs), env.unwrapped
-    vec = GearSpeedVectorEnv(n, task_config(env_id, kw))
-    o, _ = vec.reset(seed=[seed + i for i in range(n)])
-    obs = [o]
-    for a in ENV_ACTIONS:
-        o, *_ = vec.step(np.full((n, 1), a, np.float32))
-        obs.append(o)
-    return np.array(obs).transpose(1, 0, 2), vec
-
-
 @pytest.mark.parametrize("n", [3, 9])  # 9 rows: the SIMD lanes
 def test_env_scheme_single_and_vector_agree_bit_for_bit_down_to_low_omega(n):
     """scheme="fox-goodwin-vc" on a Demand task, set-points down to the lowest speeds (where the rows take a
     larger, stable beta and so plain Newmark for that interval): every sub-environment's observations are the
     single env's bit for bit, and the plant keeps beta 1/12 and the correction."""
     kw = {"scheme": "fox-goodwin-vc", "omega_min": 0.05, "initial_omega": (0.06, 1.6)}
-    obs, vec = _env_run("GearSpeedDemand-v1", 60, n, **kw)
+    obs, vec = env_run("GearSpeedDemand-v1", 60, ENV_ACTIONS, n, **kw)
     assert np.isfinite(obs).all()
     assert (vec._core.C[:, C_BETA] == FOX_GOODWIN_BETA).all()
     for i in (0, n - 1):
-        so, env = _env_run("GearSpeedDemand-v1", 60 + i, None, **kw)
+        so, env = env_run("GearSpeedDemand-v1", 60 + i, ENV_ACTIONS, None, **kw)
         np.testing.assert_array_equal(obs[i], so)
     assert env.config.params.velocity_correction and env.config.scheme == "fox-goodwin-vc"
-    plain, _ = _env_run("GearSpeedDemand-v1", 60, None, scheme="fox-goodwin", omega_min=0.05, initial_omega=(0.06, 1.6))
-    assert not np.array_equal(plain, _env_run("GearSpeedDemand-v1", 60, None, **kw)[0])
+    plain, _ = env_run("GearSpeedDemand-v1", 60, ENV_ACTIONS, None, **{**kw, "scheme": "fox-goodwin"})
+    assert not np.array_equal(plain, env_run("GearSpeedDemand-v1", 60, ENV_ACTIONS, None, **kw)[0])
 
 
 def test_env_rows_below_the_corrected_limit_take_the_plain_step_at_the_plain_beta(monkeypatch):
@@ -220,7 +197,8 @@ def test_env_rows_below_the_corrected_limit_take_the_plain_step_at_the_plain_bet
 
     monkeypatch.setattr(EnvCore, "_integrate_fixed", spy)
     for w in (0.165, 0.14, 0.5):
-        env, _ = _env_run("GearSpeedDemand-v1", 3, None, omega_min=0.1, initial_omega=(w, w), max_domega=1e-3)
+        start = {"omega_min": 0.1, "initial_omega": (w, w), "max_domega": 1e-3}
+        env, _ = env_run("GearSpeedDemand-v1", 3, ENV_ACTIONS, None, **start)
         assert env.shape[0] == len(ENV_ACTIONS) + 1
     by_w = {round(w, 3): (b, v) for w, b, v in seen}
     mid = [bv for w, bv in by_w.items() if 0.159 < w < 0.17]

@@ -134,22 +134,8 @@ def _step_limit(p: GearParams, vc: bool | None = None) -> float:
         systems.append((M, C, K))
     h = 1.0 / (math.sqrt(0.25 - p.newmark_beta) * math.sqrt(w2))
     if vc:
-        h = min(_vc_limit_kept(M, C, K, h) for M, C, K in systems)
+        h = min(_vc_limit(M, C, K, h) for M, C, K in systems)
     return STABILITY_MARGIN * h
-
-
-_VC_LIMITS: dict[bytes, float] = {}
-
-
-def _vc_limit_kept(M: np.ndarray, C: np.ndarray, K: np.ndarray, h_fg: float) -> float:
-    """:func:`_vc_limit`, kept per linearised system: a plant family that varies the load or the transmission error
-    (the environments draw a new pair per episode) leaves M, C and K as they are, so it is computed once."""
-    key = np.concatenate([M.ravel(), C.ravel(), K.ravel(), [h_fg]]).tobytes()
-    if key not in _VC_LIMITS:
-        if len(_VC_LIMITS) >= 4096:
-            _VC_LIMITS.clear()
-        _VC_LIMITS[key] = _vc_limit(M, C, K, h_fg)
-    return _VC_LIMITS[key]
 
 
 def vc_amplification(M: np.ndarray, C: np.ndarray, K: np.ndarray, h: float) -> np.ndarray:
