@@ -141,7 +141,10 @@ def _step_limit(p: GearParams, vc: bool | None = None) -> float:
 def vc_amplification(M: np.ndarray, C: np.ndarray, K: np.ndarray, h: float) -> np.ndarray:
     """The 15 x 15 matrix that maps (q, v, a) over one step h of Fox-Goodwin with the velocity correction
     (``GearParams.velocity_correction``) for the linear system M a + C v_f + K q = 0, where the damping feels
-    v_f = v + h (7/12 a + 5/12 a_new) and the state keeps Newmark's v_new = v + h/2 (a + a_new)."""
+    v_f = v + h (7/12 a + 5/12 a_new) and the state keeps Newmark's v_new = v + h/2 (a + a_new).
+
+    M, C, K: dimensionless (5, 5) matrices as :func:`matrices` returns them; h: the step in natural time
+    (s = omega_n t). States in b0 units, velocities and accelerations per natural time unit."""
     n = M.shape[0]
     beta, gf = 1.0 / 12.0, 0.5 - 1.0 / 12.0
     S = M + gf * h * C + beta * h * h * K
