@@ -85,6 +85,9 @@ def test_unknown_keys_are_refused_by_name(key):
         ({"bogus": 1}, "bogus"),
         ({"max_domega": float("nan")}, "max_domega"),
         ({"omega_max": float("inf")}, "omega_max"),
+        # a narrow range refuses the default max_domega: the message names the setting the user changed too
+        ({"omega_max": 0.125}, r"max_domega must be in \(0, 0.025\].*omega_max - omega_min = 0.125 - 0.1"),
+        ({"omega_min": 2.99}, r"max_domega .*omega_max - omega_min = 3 - 2.99"),
         ({"steps_per_period": 64.0}, "steps_per_period"),
         ({"initial_omega": (2.0, 1.0)}, "initial_omega"),
         ({"demand": [(0, 1.0), (-1, 1.0)]}, "demand"),

@@ -217,6 +217,8 @@ class GearSpeedEnv(gym.Env):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
         self._core = GearSpeedCore(self.config, 1, single=True)
+        self._row0 = np.zeros(1, np.int64)  # the core's row of this env (read-only: passed every step)
+        self._row0.flags.writeable = False
         lo, hi = self._core.observation_bounds()
         self.observation_space = spaces.Box(lo, hi, dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
@@ -252,7 +254,7 @@ class GearSpeedEnv(gym.Env):
         if self._needs_reset:
             raise RuntimeError("call reset() before step() (and after an episode ended)")
         a = check_action(action)
-        reward, terminated, truncated = self._core.step_rows(np.array([0]), a)
+        reward, terminated, truncated = self._core.step_rows(self._row0, a)
         info = self._core.info_row(0)
         self._history.append((info["omega"], info["chaos"], info["contact_loss"], info["force_peak"]))
         term, trunc = bool(terminated[0]), bool(truncated[0]) and not self._wrapper_truncates

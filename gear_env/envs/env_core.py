@@ -23,7 +23,15 @@ import numpy as np
 
 from .._numba_cache import announce_compile
 from ..sim import kernels as K
-from ..sim.integration import CONTACT_STEPS, TOL_N_START, contact_steps, integrate
+from ..sim.integration import (
+    CONTACT_STEPS,
+    NEWTON_MAX_ITER,
+    NEWTON_TOL,
+    TOL_N_START,
+    _excitation_table,
+    contact_steps,
+    integrate,
+)
 from ..sim.linear import stability_frequency, stable_betas
 from ..sim.params import C_BETA, C_FS, C_VC, FOX_GOODWIN_BETA, GearParams, model_code, refuse_extensions
 from . import env_kernels as EK
@@ -145,6 +153,9 @@ class GearSpeedCore:
         # the info dict reads these columns of I (all of them in the common case: no copy)
         self._info_cols = None if np.array_equal(info_cols, np.arange(ET.N_INFO)) else info_cols
         self._info_items = tuple(terms.info_keys.items())
+        # info_row: the keys in column order, and the (position, type) of the few that are not floats
+        self._info_keys = tuple(k for k, _ in self._info_items)
+        self._info_casts = tuple((j, k, t) for j, (k, t) in enumerate(self._info_items) if t is not float)
         self._demand_pts = cfg.demand_points()
         # the episode scenario of every row (gear_env.envs.tasks.Episode: plant, duty cycle, demand), and the
         # demand and load level of every step of it (tables only when they vary)
@@ -242,7 +253,10 @@ class GearSpeedCore:
     def info_row(self, r: int) -> dict[str, Any]:
         """Plain-Python info dict of row ``r`` (floats, ints, bools)."""
         row = (self.I[r] if self._info_cols is None else self.I[r, self._info_cols]).tolist()
-        return {k: t(v) for (k, t), v in zip(self._info_items, row)}
+        out = dict(zip(self._info_keys, row))  # tolist gives Python floats; cast the int and bool keys
+        for j, k, t in self._info_casts:
+            out[k] = t(row[j])
+        return out
 
     # ------------------------------------------------------------------ kernels
     def _integrate(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int):
@@ -357,11 +371,13 @@ class GearSpeedCore:
             pc, st = self._pc_buf, self._st_buf
             x = self.X[r].copy()
             a = self.A[r].copy()
-            run = integrate(
-                x, a, self._C_ro[r], self.code, float(w0[0]), float(w1[0]), periods, nsp,
-                poincare=pc[0], stats=st[0],
+            c = self._C_ro[r]
+            # integrate()'s one-system call without its argument checks (these buffers are the env's own, sized
+            # above): the same kernel, the same numbers
+            status, _done, el = K.integrate_stats_lazy(
+                x, a, 0.0, float(w0[0]), float(w1[0]), periods, nsp, c, self.code, pc[0], st[0], NEWTON_MAX_ITER,
+                NEWTON_TOL, True, _excitation_table(nsp, c),
             )  # fmt: skip
-            status, el = run.status, run.elapsed
             good = status == K.OK and math.isfinite(float(st[0].sum()))
             if good:
                 self.X[r] = x
@@ -446,9 +462,10 @@ class GearSpeedCore:
         if self.config.demand is None:
             demand = demand_next = self._zeros[:m]
         else:
-            steps = self.steps[rows]
-            demand = self.demand(steps, rows)
-            demand_next = demand if is_reset else self.demand(steps + 1, rows)
+            last = self._dem.shape[1] - 1  # beyond the episode's max_steps the last value holds (as demand())
+            t = np.minimum(self.steps[rows], last)
+            demand = self._dem[rows, t]
+            demand_next = demand if is_reset else self._dem[rows, np.minimum(t + 1, last)]
         EK.post_step(
             rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, self.S, self.hist, self.tr_ref, self.fs,
             self.omega_n, self.steps, self.X, self.ACC, self.I, self._reward_cols, self._cost_cols, self.F,

@@ -294,7 +294,17 @@ def _omega_max(label: str, v: Any, cfg: Any) -> float:
 
 
 def _max_domega(label: str, v: Any, cfg: Any) -> float:
-    return check_real(label, v, 0.0, cfg.omega_max - cfg.omega_min, lo_open=True)
+    try:
+        return check_real(label, v, 0.0, cfg.omega_max - cfg.omega_min, lo_open=True)
+    except ValueError as exc:
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not 0 < v < math.inf:
+            raise
+        # a positive number above the bound, which two other settings make: name them (a user who set omega_max
+        # to 0.125 with the default max_domega 0.05 is told which of the three to change)
+        raise ValueError(
+            f"{exc} (the bound is omega_max - omega_min = {cfg.omega_max:g} - {cfg.omega_min:g}: lower max_domega or "
+            "widen [omega_min, omega_max])"
+        ) from None
 
 
 def _steps(label: str, v: Any, cfg: Any) -> int | str:
