@@ -13,9 +13,12 @@ Sets (both backlash models, period-1 orbits only: the reference's last two Poinc
   corners and one inside) at omega 0.307 + 0.04 k, never used for a choice.
 
 Per orbit: the largest difference of 10 Poincare points from ``gear_env.sim.reference.reference_poincare`` after
-starting on the orbit, at 64 fixed steps, at the rule's count (from the orbit's contact loss at 64 steps) and at 64
-steps of ``"fox-goodwin-vc"`` (``GearParams.velocity_correction``). The rule's cost is its mean count over the orbits
-(the environments' cost is measured by ``env_tol.py``).
+starting on the orbit, at 64 fixed steps, at the rule's count (from the orbit's contact loss at 64 steps), at 64
+steps of ``"fox-goodwin-vc"`` (``GearParams.velocity_correction``, the Fox-Goodwin ids' scheme) and at the rule's
+count under that scheme (from its own contact loss at 64 steps: what ``steps_per_period="auto"`` does on those ids),
+and at 64 steps of that scheme with the contact changes located inside the steps (the environments'
+``locate_contacts=True``), with the contact changes located per mesh period.
+The rule's cost is its mean count over the orbits (the environments' cost is measured by ``env_tol.py``).
 """
 
 from __future__ import annotations
@@ -44,32 +47,55 @@ def orbits(params, omegas) -> list[tuple[str, float, np.ndarray, np.ndarray]]:
     return out
 
 
-def errors(params, cases) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Per orbit: error at 64 fixed Fox-Goodwin steps, error at the rule's count, the rule's count, and error at 64
-    steps of Fox-Goodwin with the velocity correction (scheme ``"fox-goodwin-vc"``)."""
+def errors(params, cases) -> tuple[np.ndarray, ...]:
+    """Per orbit: error at 64 fixed Fox-Goodwin steps, error at the rule's count, the rule's count; error at 64
+    steps of Fox-Goodwin with the velocity correction (scheme ``"fox-goodwin-vc"``), error at the rule's count under
+    that scheme and that count."""
     from gear_env import GearSimulator
     from gear_env.sim.integration import contact_steps
 
     fg = params.replace(newmark_beta=1.0 / 12.0)
     vc = fg.replace(velocity_correction=True)
-    e64, er, ns, evc = [], [], [], []
+    e64, er, ns, evc, erv, nsv = [], [], [], [], [], []
     for model, w, x0, ref in cases:
-        iv = GearSimulator(fg, model, 64, w, x0).advance(10)
-        e64.append(float(np.max(np.abs(iv.poincare[:, :10] - ref))))
-        n = contact_steps(iv.separation_fraction)
-        ns.append(n)
-        iv_n = iv if n == 64 else GearSimulator(fg, model, n, w, x0).advance(10)
-        er.append(float(np.max(np.abs(iv_n.poincare[:, :10] - ref))))
-        iv_vc = GearSimulator(vc, model, 64, w, x0).advance(10)
-        evc.append(float(np.max(np.abs(iv_vc.poincare[:, :10] - ref))))
-    return np.array(e64), np.array(er), np.array(ns), np.array(evc)
+        for p, e_fixed, e_rule, counts in ((fg, e64, er, ns), (vc, evc, erv, nsv)):
+            iv = GearSimulator(p, model, 64, w, x0).advance(10)
+            e_fixed.append(float(np.max(np.abs(iv.poincare[:, :10] - ref))))
+            n = contact_steps(iv.separation_fraction)
+            counts.append(n)
+            iv_n = iv if n == 64 else GearSimulator(p, model, n, w, x0).advance(10)
+            e_rule.append(float(np.max(np.abs(iv_n.poincare[:, :10] - ref))))
+    eloc, nloc = [], []
+    for model, w, x0, ref in cases:
+        e, n = located(vc, model, w, x0, ref)
+        eloc.append(e)
+        nloc.append(n)
+    return tuple(np.array(v) for v in (e64, er, ns, evc, erv, nsv, eloc, nloc))
 
 
-def line(name: str, e64: np.ndarray, er: np.ndarray, ns: np.ndarray, evc: np.ndarray) -> str:
+def located(params, model: str, w: float, x0, ref, steps: int = 64, periods: int = 10) -> tuple[float, float]:
+    """Error over ``periods`` Poincare points (``ref``) of ``steps`` fixed steps of ``params`` with the contact changes
+    located (the kernels' ``C_LOC`` flag, the environments' ``locate_contacts``; not a ``GearSimulator`` option), and
+    the contact changes located per mesh period."""
+    from gear_env.sim import kernels as K
+    from gear_env.sim.integration import integrate
+    from gear_env.sim.params import C_LOC, model_code
+
+    c = params.consts.copy()
+    c[C_LOC] = 1.0
+    x, a = np.array(x0, float), np.zeros(5)
+    run = integrate(x, a, K.readonly(c), model_code(model), w, w, periods, steps)
+    return float(np.max(np.abs(run.poincare[:, :10] - ref))), float(run.stats[K.ST_SPLITS]) / periods
+
+
+def line(name: str, e64, er, ns, evc, erv, nsv, eloc, nloc) -> str:
     def s(e: np.ndarray) -> str:
         return f"{np.percentile(e, 95):.1e} / {e.max():.1e} | {(e > 1e-3).sum()}"
 
-    return f"| {name} | {len(e64)} | {s(e64)} | {s(er)} | {ns.mean():.1f} | {s(evc)} |"
+    return (
+        f"| {name} | {len(e64)} | {s(e64)} | {s(er)} | {ns.mean():.1f} | {s(evc)} | {s(erv)} | {nsv.mean():.1f} "
+        f"| {s(eloc)} | {nloc.mean():.2f} |"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -81,9 +107,10 @@ def main(argv: list[str] | None = None) -> int:
 
     print(
         "| orbit set | orbits | 64 steps: p95 / max [b0] | > 1e-3 | rule: p95 / max [b0] | > 1e-3 | rule: mean steps "
-        "| fox-goodwin-vc, 64 steps: p95 / max [b0] | > 1e-3 |"
+        "| fox-goodwin-vc, 64 steps: p95 / max [b0] | > 1e-3 | fox-goodwin-vc, rule: p95 / max [b0] | > 1e-3 "
+        "| its mean steps | fox-goodwin-vc, 64 located: p95 / max [b0] | > 1e-3 | contact changes per period |"
     )
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     base = GearParams()
     for name in args.sets:
         if name in ("tuning", "fresh"):
@@ -92,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
             print(line(f"Table 1 pair, {name}", *errors(base, orbits(base, omegas))), flush=True)
             continue
         omegas = np.round(np.arange(0.307, 2.4, 0.04), 6)
-        total = [np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0)]
+        total = [np.zeros(0)] * 8
         for load, te in FAMILY:
             p = PlantFamily.plant(base, {"load": load, "e_m1": te}, 1.0)
             res = errors(p, orbits(p, omegas))

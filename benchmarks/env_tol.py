@@ -12,15 +12,15 @@ the cost the CPU time of the steps (the settings interleaved per seed, so drift 
     python benchmarks/env_tol.py --vector 16 --rounds 5   # also the vector env's env-steps/s, Fox-Goodwin vs 64 steps
 
 The Fox-Goodwin settings are ``params={"newmark_beta": 1/12}`` (``GearParams.newmark_beta``), at 64 and 96 steps,
-with the velocity correction (``"velocity_correction": True``, scheme ``"fox-goodwin-vc"``) at 64 and 68,
-and with ``steps_per_period="auto"`` (48, 64 or 80 steps by the contact loss of the step before; opt-in, the
-Fox-Goodwin ids keep 64).
+with the velocity correction (``"velocity_correction": True``, scheme ``"fox-goodwin-vc"``) at 64 and 68 and at 64
+with the contact changes located (``locate_contacts=True``), and with ``steps_per_period="auto"`` (48, 64 or 80
+steps by the contact loss of the step before; opt-in, the Fox-Goodwin ids keep 64).
 
     python benchmarks/env_tol.py --task-cost 20 --policy pretrained   # the cost on the task as a policy runs it
 
 ``--task-cost N`` runs N episodes of ``--policy`` on the task, on its Fox-Goodwin id (``GearSpeedDemand-v1`` for
-``GearSpeedDemand-v0``; the corrected scheme since 2026-12-07, plain Fox-Goodwin before) and on that id with
-``steps_per_period="auto"``, interleaved per episode, and prints the CPU
+``GearSpeedDemand-v0``; the corrected scheme since 2026-12-07, plain Fox-Goodwin before), on that id with
+``steps_per_period="auto"`` and on it with ``locate_contacts=True``, interleaved per episode, and prints the CPU
 ratios and the auto run's mean steps per mesh period (the counts chosen for steps 2 to the last of each episode).
 
 ``--json FILE`` writes the run's record (benchmarks/bench_record.py; benchmarks/make_tables.py reads it).
@@ -47,6 +47,7 @@ SETTINGS = {
     "Fox-Goodwin-vc 64 steps": {"params": FOX_GOODWIN_VC},
     "Fox-Goodwin-vc 68 steps": {"params": FOX_GOODWIN_VC, "steps_per_period": 68},
     "Fox-Goodwin auto": {"params": FOX_GOODWIN, "steps_per_period": "auto"},
+    "Fox-Goodwin-vc 64 located": {"params": FOX_GOODWIN_VC, "locate_contacts": True},
 }
 
 
@@ -76,6 +77,7 @@ def vector_rates(env_id: str, n: int, rounds: int, seconds: float) -> dict[str, 
         "Fox-Goodwin 64 steps": GearSpeedVectorEnv(n, task_config(env_id, {"params": FOX_GOODWIN})),
         "Fox-Goodwin auto": GearSpeedVectorEnv(n, task_config(env_id, SETTINGS["Fox-Goodwin auto"])),
         "Fox-Goodwin-vc 64 steps": GearSpeedVectorEnv(n, task_config(env_id, {"params": FOX_GOODWIN_VC})),
+        "Fox-Goodwin-vc 64 located": GearSpeedVectorEnv(n, task_config(env_id, SETTINGS["Fox-Goodwin-vc 64 located"])),
     }
     rng = np.random.default_rng(1)
     for e in envs.values():
@@ -93,8 +95,8 @@ def vector_rates(env_id: str, n: int, rounds: int, seconds: float) -> dict[str, 
 
 
 def task_cost(env_id: str, spec: str, episodes: int, rec) -> None:
-    """CPU of ``episodes`` episodes of policy ``spec`` on ``env_id``, on its Fox-Goodwin id and on that id with
-    ``steps_per_period="auto"``, interleaved per episode."""
+    """CPU of ``episodes`` episodes of policy ``spec`` on ``env_id``, on its Fox-Goodwin id, on that id with
+    ``steps_per_period="auto"`` and with ``locate_contacts=True``, interleaved per episode."""
     import gymnasium as gym
 
     from agents.registry import resolve_policy
@@ -103,7 +105,12 @@ def task_cost(env_id: str, spec: str, episodes: int, rec) -> None:
     from gear_env.evaluation.episodes import run_episode
 
     fg_id = {old: new for new, old in FOX_GOODWIN_TASKS.items()}[env_id]  # main checked it
-    runs = {env_id: (env_id, {}), fg_id: (fg_id, {}), f"{fg_id}, auto steps": (fg_id, {"steps_per_period": "auto"})}
+    runs = {
+        env_id: (env_id, {}),
+        fg_id: (fg_id, {}),
+        f"{fg_id}, auto steps": (fg_id, {"steps_per_period": "auto"}),
+        f"{fg_id}, contacts located": (fg_id, {"locate_contacts": True}),
+    }
     cpu = dict.fromkeys(runs, 0.0)
     counts: list[int] = []
     for tid, kw in runs.values():  # warm up (maps, compilation)
@@ -114,7 +121,8 @@ def task_cost(env_id: str, spec: str, episodes: int, rec) -> None:
             pol = resolve_policy(spec, task_config(tid, kw), env_id=tid)
             core = env.unwrapped._core
             mine: list[int] = []
-            count = (lambda info, core=core, mine=mine: mine.append(int(core.n_steps[0]))) if kw else None
+            auto = kw.get("steps_per_period") == "auto"
+            count = (lambda info, core=core, mine=mine: mine.append(int(core.n_steps[0]))) if auto else None
             t0 = time.process_time()
             run_episode(env, pol, 800000 + ep, count)
             cpu[name] += time.process_time() - t0
@@ -199,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
         a = np.array(rates["64 steps (default)"])
         print(f"\nGearSpeedVectorEnv({args.vector}), {args.rounds} interleaved rounds (load average "
               f"{os.getloadavg()[0]:.1f}): 64 steps {np.median(a):.0f} env-steps/s")  # fmt: skip
-        for name in ("Fox-Goodwin 64 steps", "Fox-Goodwin-vc 64 steps", "Fox-Goodwin auto"):
+        for name in [k for k in rates if k != "64 steps (default)"]:
             ratio = np.array(rates[name]) / a
             print(f"  {name}: {np.median(rates[name]):.0f} env-steps/s; ratio {np.median(ratio):.2f} "
                   f"[{ratio.min():.2f}, {ratio.max():.2f}]")  # fmt: skip

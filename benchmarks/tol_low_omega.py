@@ -7,6 +7,7 @@ fixed step count (192 at omega >= 0.27, more below) and, with ``--fox-goodwin N 
     python benchmarks/tol_low_omega.py                         # omega 0.3, 0.35, 0.45, 0.6; ~2 min
     python benchmarks/tol_low_omega.py --omegas 0.3 0.4 --tols 3e-3 3e-4 --periods 20
     python benchmarks/tol_low_omega.py --omegas 0.12 0.15 0.2 0.25 0.3 --tols --fox-goodwin 88 --periods 10
+    python benchmarks/tol_low_omega.py --omegas 0.2 0.22 0.25 --tols --fox-goodwin-vc 64 --fox-goodwin-vc-located 64
 
 Prints, per model and omega, the error of each mode and the step count (for tol: the coarse N it ended with).
 """
@@ -32,8 +33,13 @@ def main(argv: list[str] | None = None) -> int:
                     help="also N Fox-Goodwin steps per period (beta 1/12; the stability floor if higher)")  # fmt: skip
     ap.add_argument("--fox-goodwin-vc", type=int, nargs="*", default=[], metavar="N",
                     help="also N steps of Fox-Goodwin with the velocity correction (the floor if higher)")  # fmt: skip
+    ap.add_argument("--fox-goodwin-vc-located", type=int, nargs="*", default=[], metavar="N",
+                    help="also N steps of Fox-Goodwin with the velocity correction, contact changes located (the "
+                    "environments' locate_contacts; the floor if higher)")  # fmt: skip
     ap.add_argument("--periods", type=int, default=40, help="Poincare points compared (40)")
     args = ap.parse_args(argv)
+    from contact_steps import located
+
     fg = GearParams(newmark_beta=FOX_GOODWIN_BETA)
     vc = fg.replace(velocity_correction=True)
     print(f"largest error over {args.periods} Poincare points (b0), and the step count N of each mode")
@@ -43,6 +49,7 @@ def main(argv: list[str] | None = None) -> int:
             [f"tol {t:g}".ljust(16) for t in args.tols]
             + [f"fox-goodwin {n}".ljust(16) for n in args.fox_goodwin]
             + [f"fox-goodwin-vc {n}".ljust(16) for n in args.fox_goodwin_vc]
+            + [f"vc {n} located".ljust(16) for n in args.fox_goodwin_vc_located]
         )
     )
     for model in ("constant", "dynamic"):
@@ -61,6 +68,10 @@ def main(argv: list[str] | None = None) -> int:
                 err = float(np.max(np.abs(iv.poincare[:, :10] - ref[: args.periods])))
                 n_shown = s.steps_per_period // 2 if tol is not None else s.steps_per_period
                 cells.append(f"{err:8.1e} (N {n_shown:3d})")
+            for n in args.fox_goodwin_vc_located:
+                nsp = max(n, min_steps_per_period(vc, w))
+                err = located(vc, model, w, x0, ref[: args.periods], nsp, args.periods)[0]  # contact_steps.py
+                cells.append(f"{err:8.1e} (N {nsp:3d})")
             print(f"{model:8s} {w:6.2f} | " + " | ".join(cells), flush=True)
     return 0
 

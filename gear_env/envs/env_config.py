@@ -142,6 +142,9 @@ class GearSpeedConfig(TableConfig):
             every mesh period is then integrated with contact changes located and Richardson-extrapolated
             N and 2N steps, N chosen per period per system (as ``GearSimulator(tol=)``);
             ``steps_per_period`` is then unused. The single and the vector env stay identical.
+        locate_contacts: False (default) or True: a Newmark step whose contact region changes is taken again split
+            at the crossing (``gear_env.sim.kernels.located_step_t``); fixed steps only. The single and the
+            vector env stay identical.
         randomize_params: if True, every episode multiplies kappa, the three damping ratios and
             the two torques by independent factors uniform in [1 - s, 1 + s], s = ``randomize_scale``.
         randomize_scale: relative jitter s, in [0, 0.5].

@@ -33,7 +33,7 @@ from ..sim.integration import (
     integrate,
 )
 from ..sim.linear import stability_frequency, stable_betas
-from ..sim.params import C_BETA, C_FS, C_VC, FOX_GOODWIN_BETA, GearParams, model_code, refuse_extensions
+from ..sim.params import C_BETA, C_FS, C_LOC, C_VC, FOX_GOODWIN_BETA, GearParams, model_code, refuse_extensions
 from . import env_kernels as EK
 from . import env_terms as ET
 from . import force_level as FL
@@ -200,6 +200,8 @@ class GearSpeedCore:
         self.X = np.zeros((n, K.NSTATE))
         self.A = np.zeros((n, K.NDOF))
         self.C = np.tile(np.asarray(cfg.params.consts, float), (n, 1))
+        self._loc = 1.0 if cfg.locate_contacts else 0.0  # the kernels' flag (C_LOC), kept over plant changes
+        self.C[:, C_LOC] = self._loc
         self._C_ro = K.readonly(self.C)  # rows as the kernels take them (one compiled signature)
         self.codes = np.full(n, self.code, np.int64)
         self.omega_n = np.full(n, cfg.params.omega_n)
@@ -633,6 +635,7 @@ class GearSpeedCore:
                 f"{self.C.shape[1]}: every plant of a family must have as many excitation harmonics as the base"
             )
         self.C[r] = p.consts
+        self.C[r, C_LOC] = self._loc
         self.beta[r] = p.newmark_beta
         self.w_stab[r] = stability_frequency(p)
         self.w_plain[r] = stability_frequency(p, plain=True)

@@ -318,6 +318,14 @@ def _steps(label: str, v: Any, cfg: Any) -> int | str:
     return int(v)
 
 
+def _locate(label: str, v: Any, cfg: Any) -> bool:
+    """A bool; True only with fixed steps (``tol`` locates the contact changes itself)."""
+    b = boolean(label, v, cfg)
+    if b and cfg.tol is not None:
+        raise ValueError(f"{label} applies to fixed steps; tol={cfg.tol!r} locates contact changes itself: leave one")
+    return b
+
+
 def _tol(label: str, v: Any, cfg: Any) -> float | None:
     """None (fixed steps) or the error per mesh period in b0 units, in [1e-8, 0.1]."""
     from ..sim.params import NEWMARK_BETA  # lazy: keeps this module free of numba
@@ -555,6 +563,10 @@ SETTINGS: tuple[Setting, ...] = (
             "error per mesh period (b0 units) instead of `steps_per_period`: every mesh period integrated with "
             "contact changes located and N, 2N steps Richardson-extrapolated, N chosen per period "
             "(`GearSimulator(tol=)`); None: fixed steps"),
+    Setting("locate_contacts", False, _locate, "bool",
+            "locate the contact changes inside the Newmark steps (a step whose contact region changes is taken again "
+            "split at the crossing, `gear_env.sim.kernels.located_step_t`): fixed steps only (not with `tol`, which "
+            "locates them itself); single and vector env alike"),
     Setting("randomize_params", False, boolean, "bool", "per-episode jitter of kappa, xi_m, xi_p, xi_g, T_p, T_g"),
     Setting("randomize_scale", 0.1, real(0.0, 0.5), "[0, 0.5]",
             "relative jitter (uniform factors in [1-s, 1+s], seeded)"),

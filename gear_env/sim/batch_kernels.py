@@ -44,19 +44,21 @@ R_G = R_S + K.NSTATE + K.NDOF
 R_OLD = R_G + K.NDOF
 R_K = R_OLD + K.NSTATE + 2 * K.NDOF
 # step outputs
-O_F, O_REG, O_DELTA, O_BD, O_SP, O_CP, O_H, O_WB, O_DONE, O_SPLIT, O_BAD = range(R_K + N_K, R_K + N_K + 11)
+# (O_HL: the natural time of the step's last part, what the corrected velocity of a Poincare sample takes
+# (newmark.output_t): the step's own, that of the part after a located contact change, 0 after a split step)
+O_F, O_REG, O_DELTA, O_BD, O_SP, O_CP, O_H, O_WB, O_DONE, O_SPLIT, O_BAD, O_HL = range(R_K + N_K, R_K + N_K + 12)
 # accumulators (as in kernels.integrate_stats_tab) and per-lane settings
 (
     Q_T, Q_N, Q_NSPLIT, Q_SEP, Q_BACK, Q_BACK_IMP, Q_DRIVE_IMP, Q_FSUM, Q_FSQ, Q_TRSQ, Q_RPMAX,
     Q_FMAX, Q_FMIN, Q_UMAX, Q_UMIN, Q_DMAX, Q_DMIN, Q_BDMAX, Q_BDMIN, Q_SPMAX, Q_SPMIN,
-    Q_FPREV, Q_TRPREV, Q_REGPREV, Q_EL, Q_LIVE, Q_W0, Q_WW, Q_WA,
-) = range(O_BAD + 1, O_BAD + 30)  # fmt: skip
-N_ROWS = Q_WA + 1
+    Q_FPREV, Q_TRPREV, Q_REGPREV, Q_EL, Q_LIVE, Q_W0, Q_WW, Q_WA, Q_DPREV, Q_BDPREV,
+) = range(O_HL + 1, O_HL + 32)  # fmt: skip
+N_ROWS = Q_BDPREV + 1
 
 
 @kernel_inline
 def _lane_k(B, e):
-    """The step constants (``kernels.step_consts``, N_K = 22 of them) of lane e, rows R_K, R_K + 1, ...
+    """The step constants (``kernels.step_consts``, N_K = 23 of them) of lane e, rows R_K, R_K + 1, ...
 
     Written out: ``to_fixed_tuple`` of the column slice gives the same numbers but stops LLVM from
     vectorising the lane loop (3x slower in an interleaved A/B run, benchmarks/ab_compare.py)."""
@@ -65,6 +67,7 @@ def _lane_k(B, e):
         B[r, e], B[r + 1, e], B[r + 2, e], B[r + 3, e], B[r + 4, e], B[r + 5, e], B[r + 6, e], B[r + 7, e],
         B[r + 8, e], B[r + 9, e], B[r + 10, e], B[r + 11, e], B[r + 12, e], B[r + 13, e], B[r + 14, e],
         B[r + 15, e], B[r + 16, e], B[r + 17, e], B[r + 18, e], B[r + 19, e], B[r + 20, e], B[r + 21, e],
+        B[r + 22, e],
     )  # fmt: skip
 
 
@@ -146,6 +149,7 @@ def _first_pass(B, TB, nl, m, jj, dphi, dynamic, tol):
         B[O_SP, e] = fin[4]
         B[O_CP, e] = fin[5]
         B[O_H, e] = hc[0]
+        B[O_HL, e] = hc[0]
         B[O_WB, e] = wb
         B[O_DONE, e] = 1.0 if ok else 0.0
         B[O_SPLIT, e] = 0.0
@@ -212,6 +216,8 @@ def _stats_pass(B, nl):
         B[Q_FPREV, e] = F
         B[Q_TRPREV, e] = tr
         B[Q_REGPREV, e] = region
+        B[Q_DPREV, e] = delta
+        B[Q_BDPREV, e] = bd
         B[Q_WA, e] = B[O_WB, e]
 
 
@@ -273,7 +279,33 @@ def _split_lane(B, el, j, dphi, c, dynamic, max_iter, tol):
     if st != K.OK:
         return st
     _store_lane(B, el, s, s1, F, region, delta, bd, sp, cp, split, dynamic)
+    B[O_HL, el] = 0.0  # its Poincare sample: Newmark's velocity (as kernels.split_resume stores it)
     return K.OK
+
+
+@kernel
+def _locate_lane(B, TB, el, m, j, n_steps, dphi, c, dynamic, max_iter, tol):
+    """Step j of lane el changed the contact region and the lane locates contact changes (``K_LOC``): take it
+    again from its pre-step state (R_OLD rows), split at the crossing (``kernels.located_step_t``, as
+    ``kernels.stats_segment`` does), and store the result like :func:`_redo_lane` (a located step counts as split);
+    the R_OLD accelerations become those at the start of the step's last part, for its Poincare sample. A step in
+    which no crossing is found keeps its unlocated result. Compiled apart from the vectorised loops (rare)."""
+    k = _lane_k(B, el)
+    s = _lane_s(B, el, R_OLD)
+    ja = j % n_steps
+    s1, F, region, delta, bd, sp, cp, h, nloc, sa, hl = K.located_step_t(
+        s, _lane_s(B, el), B[O_F, el], np.int64(B[O_REG, el]), B[O_DELTA, el], B[O_BD, el], B[O_SP, el],
+        B[O_CP, el], np.int64(B[Q_REGPREV, el]), B[Q_DPREV, el], B[Q_BDPREV, el], dphi * j, dphi, B[Q_WA, el],
+        B[O_WB, el], TB[m, 0, el], TB[m, 1, el], TB[m, 2, el], c, k, dynamic, max_iter, tol, TB[ja, 0, el],
+        TB[ja, 1, el], K.DQ_LINEAR, K.LOCATE_TOL_FIXED,
+    )  # fmt: skip
+    if nloc == 0:
+        return
+    _store_lane(B, el, s, s1, F, region, delta, bd, sp, cp, 1, dynamic)
+    B[O_H, el] = h
+    B[O_HL, el] = hl
+    for i in range(K.NDOF):
+        B[R_OLD + K.NSTATE + i, el] = sa[K.NSTATE + i]
 
 
 @kernel_inline
@@ -319,7 +351,7 @@ def _load_block(B, TB, nl, e0, X, A, W0, W1, total, n_steps, C, dynamic, status,
         x = X[e].copy()
         a = A[e].copy()
         # runtime_int: the copy of start_step that the single-system kernels use, not one for the literal
-        F0, reg0, _d, _b = K.start_step(x, a, 0.0, W0[e], c, K.runtime_int(dynamic), work)
+        F0, reg0, d0, bd0 = K.start_step(x, a, 0.0, W0[e], c, K.runtime_int(dynamic), work)
         for i in range(K.NSTATE):
             B[R_S + i, el] = x[i]
         for i in range(K.NDOF):
@@ -332,6 +364,8 @@ def _load_block(B, TB, nl, e0, X, A, W0, W1, total, n_steps, C, dynamic, status,
         B[Q_WA, el] = W0[e]
         B[Q_FPREV, el] = F0
         B[Q_REGPREV, el] = float(reg0)
+        B[Q_DPREV, el] = d0
+        B[Q_BDPREV, el] = bd0
         B[Q_TRPREV, el] = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
         for i in (Q_RPMAX, Q_FMAX, Q_UMAX, Q_DMAX, Q_BDMAX, Q_SPMAX):
             B[i, el] = -np.inf
@@ -413,6 +447,15 @@ def _integrate(
                     status[e] = st
                     done[e] = j // n_steps
                     _retire(B, el, e, r_old, X, A, stats, elapsed, B[Q_EL, el] + B[O_H, el], C[e], dynamic)
+            # lanes that locate contact changes and changed the contact region in this step (not a split step)
+            for el in range(nl):
+                if (
+                    B[R_K + K.K_LOC, el] != 0.0
+                    and B[Q_LIVE, el] != 0.0
+                    and B[O_REG, el] != B[Q_REGPREV, el]
+                    and B[O_HL, el] != 0.0
+                ):
+                    _locate_lane(B, TB, el, m, j, n_steps, dphi, C[e0 + el], dynamic, max_iter, tol)
             _check_pass(B, nl)
             for el in range(nl):
                 if B[O_BAD, el] != 0.0 and B[Q_LIVE, el] != 0.0:
@@ -426,8 +469,9 @@ def _integrate(
                     if B[Q_LIVE, el] == 0.0:
                         continue
                     e = e0 + el
-                    # the velocity the forces felt (newmark.output_t); Newmark's own after a split step
-                    wh = B[R_K + K.K_VC, el] * B[O_H, el] * (1.0 - B[O_SPLIT, el])
+                    # the velocity the forces felt (newmark.output_t; over the step's last part after a located
+                    # contact change); Newmark's own after a split step (O_HL 0)
+                    wh = B[R_K + K.K_VC, el] * B[O_HL, el]
                     for i in range(K.NDOF):
                         poincare[e, p, i] = B[R_S + i, el]
                     for i in range(K.NDOF, K.NSTATE):

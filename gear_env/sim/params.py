@@ -74,7 +74,8 @@ def scheme_name(newmark_beta: float, velocity_correction: bool) -> str | None:
 
 C_BETA = 30  # Newmark beta of the integrator (numerics: GearParams.newmark_beta)
 C_VC = 31  # 1.0 with GearParams.velocity_correction (Fox-Goodwin's velocity corrected in the forces), else 0.0
-N_CONSTS = 32  # length of the fixed part; the harmonic tail follows it
+C_LOC = 32  # 1.0: contact changes located inside the steps (the environments' locate_contacts; GearParams: 0.0)
+N_CONSTS = 33  # length of the fixed part; the harmonic tail follows it
 C_TAIL = N_CONSTS  # tail: kappa_n (cos, sin)(phi_kn), n = 1..N_k, then E_n / b0 (cos, sin)(phi_en), n = 1..N_e
 MAX_HARMONICS = 64
 

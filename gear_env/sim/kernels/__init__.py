@@ -61,6 +61,7 @@ from .drivers import (
     integrate_stats_lazy,
     integrate_stats_tab,
     integrate_tol,
+    located_step_t,
     split_resume,
     start_step,
     stats_segment,
@@ -89,6 +90,7 @@ from .layout import (
     K_INV_R,
     K_K_G,
     K_K_P,
+    K_LOC,
     K_MU,
     K_R,
     K_SIN_A0,
@@ -177,6 +179,7 @@ from .mesh import (
 from .newmark import (
     DQ_LINEAR,
     LOCATE_TOL,
+    LOCATE_TOL_FIXED,
     LOCATE_TOL_STEP,
     MAX_SPLIT_LEVEL,
     NEWTON_BAD,

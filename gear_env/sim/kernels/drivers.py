@@ -14,6 +14,7 @@ import numpy as np
 from .jit import kernel, kernel_inline, readonly, runtime_int, runtime_true
 from .layout import (
     DIVERGED,
+    K_LOC,
     K_VC,
     N_LOOP_ACC,
     NDOF,
@@ -32,6 +33,8 @@ from .layout import (
     REC_REGION,
     REC_S,
     RS_ACC,
+    RS_BD_PREV,
+    RS_D_PREV,
     RS_EL,
     RS_F_PREV,
     RS_G,
@@ -63,6 +66,7 @@ from .mesh import (
 )
 from .newmark import (
     DQ_LINEAR,
+    LOCATE_TOL_FIXED,
     LOCATE_TOL_STEP,
     _diverged_t,
     crossing_fast_t,
@@ -296,8 +300,10 @@ def _rs_hc(rs):
 
 
 @kernel_inline
-def _rs_save_t(rs, j, s, g, acc, tr_prev, F_prev, reg_prev, el, wa, wb, hc):
+def _rs_save_t(rs, j, s, g, acc, tr_prev, F_prev, reg_prev, el, wa, wb, hc, d_prev, bd_prev):
     """Write the loop's locals into rs (layout ``RS_*``)."""
+    rs[RS_D_PREV] = d_prev
+    rs[RS_BD_PREV] = bd_prev
     rs[RS_J] = j
     for i in range(NSTATE + NDOF):
         rs[RS_S + i] = s[i]
@@ -355,11 +361,13 @@ def stats_segment(
         el = rs[RS_EL]
         wa = rs[RS_WA]
         hc = _rs_hc(rs)
+        d_prev = rs[RS_D_PREV]
+        bd_prev = rs[RS_BD_PREV]
     else:
         work = np.zeros(WORK_SIZE)
         if reset_stats:
             _stats_init(stats)
-        F_prev, reg_prev, delta, bd = start_step(x, a, phi0, w0, c, dynamic, work)
+        F_prev, reg_prev, d_prev, bd_prev = start_step(x, a, phi0, w0, c, dynamic, work)
         s = load_t(x, a)
         g = (a[0], a[1], a[2], a[3], a[4])
         tr_prev = 0.5 * (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
@@ -376,35 +384,85 @@ def stats_segment(
         tf[i, 0] = tab[i, 0]
         tf[i, 1] = tab[i, 1]
         tf[i, 2] = tab[i, 2]
-    while j < total:  # the hot loop: no calls
-        wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
-        m = (j + 1) % n_steps
-        kq = with_load_t(k, ld[j], tq)  # k itself unless the torque fluctuates
-        ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(
-            s, g, tf[m, 0], tf[m, 1], tf[m, 2], wb, hc, kq, dynamic, max_iter, tol
-        )
-        if not ok:
+    locate = k[K_LOC] != 0.0
+    # the step that the hot loop hands over to be located (its unlocated result)
+    wb = wa
+    m = 0
+    kq = k
+    s1 = s
+    F = 0.0
+    region = reg_prev
+    delta = d_prev
+    bd = bd_prev
+    sp = 0.0
+    cp = 1.0
+    while True:
+        pending = False
+        while j < total:  # the hot loop: no calls
+            wb, hc = omega_step_t(j, wa, hc, w0, ww, dphi, k)
+            m = (j + 1) % n_steps
+            kq = with_load_t(k, ld[j], tq)  # k itself unless the torque fluctuates
+            ok, s1, F, region, delta, bd, sp, cp = newmark_try_t(
+                s, g, tf[m, 0], tf[m, 1], tf[m, 2], wb, hc, kq, dynamic, max_iter, tol
+            )
+            if not ok:
+                break
+            if locate and region != reg_prev:
+                pending = True
+                break
+            h = hc[0]
+            el += h
+            g = guess_t(s, s1, dynamic == 0)
+            s0 = s
+            s = s1
+            if _diverged_t(s):
+                status = DIVERGED
+                done = j // n_steps
+                break
+            acc, tr_prev = _acc_step(acc, h, s, F, region, delta, bd, sp, 0.0, F_prev, reg_prev, tr_prev)
+            F_prev = F
+            reg_prev = region
+            d_prev = delta
+            bd_prev = bd
+            if m == 0:  # the velocity the forces felt (newmark.output_t; Newmark's own without the correction)
+                so = output_t(s0, s, k[K_VC] * h)
+                _poincare_store_t(poincare, (j + 1) // n_steps - 1, so, F, delta, bd, sp, cp, c, dynamic)
+            wa = wb
+            j += 1
+        if not pending:
             break
-        h = hc[0]
+        # step j changed the contact region and contact changes are located (K_LOC): take it again split at the
+        # crossing (out of the hot loop, which stays free of calls)
+        s1, F, region, delta, bd, sp, cp, h, nloc, sa, hl = located_step_t(
+            s, s1, F, region, delta, bd, sp, cp, reg_prev, d_prev, bd_prev, phi0 + dphi * j, dphi, wa, wb,
+            tf[m, 0], tf[m, 1], tf[m, 2], c, kq, dynamic, max_iter, tol, tf[j % n_steps, 0], tf[j % n_steps, 1],
+            DQ_LINEAR, LOCATE_TOL_FIXED,
+        )  # fmt: skip
+        split = 1.0 if nloc > 0 else 0.0
+        if nloc == 0:  # no crossing found: the unlocated step
+            h = hc[0]
+            sa = s
+            hl = h
         el += h
-        g = guess_t(s, s1, dynamic == 0)
-        s0 = s
+        g = guess_t(s, s1, dynamic == 0 or nloc > 0)
         s = s1
         if _diverged_t(s):
             status = DIVERGED
             done = j // n_steps
             break
-        acc, tr_prev = _acc_step(acc, h, s, F, region, delta, bd, sp, 0.0, F_prev, reg_prev, tr_prev)
+        acc, tr_prev = _acc_step(acc, h, s, F, region, delta, bd, sp, split, F_prev, reg_prev, tr_prev)
         F_prev = F
         reg_prev = region
-        if m == 0:  # the velocity the forces felt (newmark.output_t; Newmark's own without the correction)
-            so = output_t(s0, s, k[K_VC] * h)
+        d_prev = delta
+        bd_prev = bd
+        if m == 0:  # the corrected velocity of the step's last part
+            so = output_t(sa, s, k[K_VC] * hl)
             _poincare_store_t(poincare, (j + 1) // n_steps - 1, so, F, delta, bd, sp, cp, c, dynamic)
         wa = wb
         j += 1
     if j < total and status == OK:
         # step j needs sub-steps (rare: Newton cycled between contact regions): split_resume
-        _rs_save_t(rs, j, s, g, acc, tr_prev, F_prev, reg_prev, el, wa, wb, hc)
+        _rs_save_t(rs, j, s, g, acc, tr_prev, F_prev, reg_prev, el, wa, wb, hc, d_prev, bd_prev)
         return SPLIT_PENDING, 0, el
     store_t(s, x, a)
     _acc_store(acc, stats, c, dynamic)
@@ -447,7 +505,7 @@ def split_resume(x, a, phi0, n_steps, c, dynamic, poincare, stats, max_iter, tol
     m = (j + 1) % n_steps
     if m == 0:
         _poincare_store_t(poincare, (j + 1) // n_steps - 1, s1, F, delta, bd, sp, cp, c, dynamic)
-    _rs_save_t(rs, j + 1, s1, g, acc, tr_prev, F, region, el, wb, wb, hc)
+    _rs_save_t(rs, j + 1, s1, g, acc, tr_prev, F, region, el, wb, wb, hc, delta, bd)
     return OK, 0, 0.0
 
 
@@ -513,14 +571,16 @@ MAX_CROSSINGS = 4
 
 @kernel_inline
 def located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dphi, w_a, w_b, ce, se, kk, c, k,
-                   dynamic, max_iter, tol, ce_a, se_a, dq_lin):  # fmt: skip
+                   dynamic, max_iter, tol, ce_a, se_a, dq_lin, theta_tol):  # fmt: skip
     """A Newmark step from s (contact region ``reg0``, Delta ``d0``, B_d ``bd0`` there) whose
     unlocated result (s1, F, region, delta, bd, sp, cp) ends in another region, taken again split at
     its contact changes (``newmark.crossing_fast_t``, falling back to ``newmark.crossing_t``; up to
     :data:`MAX_CROSSINGS`): each part before a crossing with the force on its branch, the rest from the
     crossing. ``ce, se, kk``: the excitation at the end of the step, ``ce_a, se_a`` at its start;
-    ``dq_lin`` as in ``newmark.newton_iter_t``. Returns
-    (state, F, region, Delta, B_d, sin psi, cos psi, natural time of the step, crossings located); the
+    ``dq_lin`` as in ``newmark.newton_iter_t``; ``theta_tol``: the crossing tolerance (``newmark.LOCATE_TOL_STEP``,
+    or ``LOCATE_TOL_FIXED`` for the fixed-step drivers). Returns
+    (state, F, region, Delta, B_d, sin psi, cos psi, natural time of the step, crossings located, the state
+    at the start of the step's last part, that part's natural time: what ``newmark.output_t`` takes); the
     unlocated result if no crossing is found."""
     h_sum = 0.0
     n = 0
@@ -539,11 +599,11 @@ def located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dp
         if n > 0:
             cea, sea, _kka = excitation(pa, c)
         fast, th, sm, wm, _Fm, dm, bdm, _spm, _cpm = crossing_fast_t(
-            sa, s1, cea, sea, ce, se, ra, side, pa, dp, wa, w_b, c, k, dynamic, max_iter, tol, LOCATE_TOL_STEP
+            sa, s1, cea, sea, ce, se, ra, side, pa, dp, wa, w_b, c, k, dynamic, max_iter, tol, theta_tol
         )
         if fast == 0:
             located, th, sm, wm, _Fm, dm, bdm, _spm, _cpm = crossing_t(
-                sa, a1, ra, side, ga - side * gb, pa, dp, wa, w_b, c, k, dynamic, max_iter, tol, LOCATE_TOL_STEP
+                sa, a1, ra, side, ga - side * gb, pa, dp, wa, w_b, c, k, dynamic, max_iter, tol, theta_tol
             )
             if not located:
                 break
@@ -557,28 +617,33 @@ def located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dp
         ra = side if ra == 0 else 0  # the region entered at the crossing
         sa, ga, gb, pa, dp, wa = sm, dm, bdm, pa + th * dp, (1.0 - th) * dp, wm
         s1, F, region, delta, bd, sp, cp = s2, F2, region2, delta2, bd2, sp2, cp2
-    return s1, F, region, delta, bd, sp, cp, h_sum + 2.0 * dp / (wa + w_b), n
+    h_last = 2.0 * dp / (wa + w_b)
+    return s1, F, region, delta, bd, sp, cp, h_sum + h_last, n, sa, h_last
 
 
 @kernel
-def integrate_located(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats):
+def integrate_located(x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats,
+                      theta_tol=LOCATE_TOL_STEP):  # fmt: skip
     """:func:`integrate_located_tab` with the excitation table of the period computed here."""
     return integrate_located_tab(
         x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats,
-        _excitation_table(phi0, n_steps, c), DQ_LINEAR,
+        _excitation_table(phi0, n_steps, c), DQ_LINEAR, theta_tol,
     )  # fmt: skip
 
 
 @kernel
 def integrate_located_tab(
-    x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab, dq_lin
-):
+    x, a, phi0, w0, w1, n_periods, n_steps, c, dynamic, poincare, stats, max_iter, tol, reset_stats, tab, dq_lin,
+    theta_tol=LOCATE_TOL_STEP,
+):  # fmt: skip
     """:func:`integrate_stats` (same arguments and results) with every contact change located and
     the step split there (:func:`located_step_t`), so that no contact change lies inside a step: the
     Poincare map is then smooth in the state and omega, and its error has the expansion in h^2,
     h^4, ... of a smooth problem (what :func:`integrate_tol` extrapolates). ``stats[ST_SPLITS]``
     counts the steps split at a contact change (and any split by the Newton fallback). ``dq_lin``: as in
-    ``newmark.newton_iter_t`` (:data:`newmark.DQ_LINEAR` for the exact Newmark solution)."""
+    ``newmark.newton_iter_t`` (:data:`newmark.DQ_LINEAR` for the exact Newmark solution); ``theta_tol``: the
+    crossing tolerance (:data:`newmark.LOCATE_TOL_STEP`; the fixed-step drivers' flag ``K_LOC`` uses
+    ``LOCATE_TOL_FIXED``)."""
     k = step_consts(c)
     total = n_periods * n_steps
     dphi = TWO_PI / n_steps
@@ -610,13 +675,16 @@ def integrate_located_tab(
                 return st, j // n_steps, el
             split = 1.0
         h = hc[0]
+        sa = s  # the start of the step's last part and its time, for the corrected velocity (output_t)
+        hl = 0.0 if split != 0.0 else h  # a split step's samples: Newmark's velocity
         if region != reg_prev:
-            s1, F, region, delta, bd, sp, cp, h, nloc = located_step_t(
+            s1, F, region, delta, bd, sp, cp, h_loc, nloc, sa_loc, hl_loc = located_step_t(
                 s, s1, F, region, delta, bd, sp, cp, reg_prev, d_prev, bd_prev, phi0 + dphi * j, dphi, wa, wb, ce,
-                se, kk, c, k, dynamic, max_iter, tol, tab[j % n_steps, 0], tab[j % n_steps, 1], dq_lin,
+                se, kk, c, k, dynamic, max_iter, tol, tab[j % n_steps, 0], tab[j % n_steps, 1], dq_lin, theta_tol,
             )  # fmt: skip
             if nloc > 0:
                 split = 1.0
+                h, sa, hl = h_loc, sa_loc, hl_loc
         el += h
         g = guess_t(s, s1, dynamic == 0 or split != 0.0)
         s = s1
@@ -630,7 +698,8 @@ def integrate_located_tab(
         d_prev = delta
         bd_prev = bd
         if m == 0:
-            _poincare_store_t(poincare, (j + 1) // n_steps - 1, s, F, delta, bd, sp, cp, c, dynamic)
+            so = output_t(sa, s, k[K_VC] * hl)
+            _poincare_store_t(poincare, (j + 1) // n_steps - 1, so, F, delta, bd, sp, cp, c, dynamic)
         wa = wb
     store_t(s, x, a)
     _acc_store(acc, stats, c, dynamic)

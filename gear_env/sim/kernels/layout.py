@@ -93,12 +93,14 @@ RS_EL = RS_REG_PREV + 1
 RS_WA = RS_EL + 1
 RS_WB = RS_WA + 1
 RS_HC = RS_WB + 1
-RS_SIZE = RS_HC + 7
+RS_D_PREV = RS_HC + 7  # Delta and B_d at the start of step j (the located step's start)
+RS_BD_PREV = RS_D_PREV + 1
+RS_SIZE = RS_BD_PREV + 1
 
 
 WORK_SIZE = 80
 
-# The constants of one Newmark step (:func:`kernels.mesh.step_consts`), a tuple of 22 floats that
+# The constants of one Newmark step (:func:`kernels.mesh.step_consts`), a tuple of 23 floats that
 # numba keeps in registers: ``k[K_XIM2]`` is 2 xi_m. The indices are compile-time constants, so a
 # named index costs nothing. Natural time, b0 units.
 (
@@ -124,6 +126,7 @@ WORK_SIZE = 80
     K_SIN_PHI_E,  # sin phi_e
     K_BETA,  # Newmark beta (GearParams.newmark_beta; 1/4 = the paper's average acceleration)
     K_VC,  # velocity correction w: the forces feel v - w h (a_new - a_old) (VC_WEIGHT or 0)
-) = range(22)
-N_K = K_VC + 1
+    K_LOC,  # 1.0: the fixed-step drivers locate contact changes inside the step (drivers.located_step_t)
+) = range(23)
+N_K = K_LOC + 1
 """Number of step constants (length of :func:`kernels.mesh.step_consts`)."""

@@ -61,6 +61,7 @@ from ..params import (
     C_GG,
     C_GP,
     C_KAPPA,
+    C_LOC,
     C_MU,
     C_NE,
     C_NK,
@@ -147,6 +148,7 @@ def step_consts(c):
         math.sin(c[C_PHI_E]),
         c[C_BETA],
         c[C_VC] * VC_WEIGHT if c[C_BETA] == FOX_GOODWIN_BETA else 0.0,
+        c[C_LOC],
     )
 
 

@@ -325,6 +325,11 @@ LOCATE_MAX_ITER = 60
 LOCATE_TOL_STEP = 1e-4
 """Crossing tolerance of the integration drivers (``drivers.located_step_t``): a split point off by
 d theta changes the step's end by ~ (jump of the jerk) h^3 d theta, far below the step's error."""
+LOCATE_TOL_FIXED = 1e-2
+"""Crossing tolerance of the fixed-step drivers that locate contact changes (the kernels' ``K_LOC``, the environments'
+``locate_contacts``): the first secant step of ``crossing_fast_t`` from the cubic interpolant's root then usually
+ends the search, one solve per crossing instead of 2-3 at LOCATE_TOL_STEP, for no change of the orbits' error
+(``benchmarks/contact_steps.py``)."""
 LOCATE_TOL = 1e-13
 """The crossing search stops when the bracket of the crossing is below this fraction of the step
 or the gap function is below LOCATE_TOL * 1e-2 b0."""
