@@ -293,11 +293,11 @@ def _locate_lane(B, TB, el, m, j, n_steps, dphi, c, dynamic, max_iter, tol):
     k = _lane_k(B, el)
     s = _lane_s(B, el, R_OLD)
     ja = j % n_steps
-    s1, F, region, delta, bd, sp, cp, h, nloc, sa, hl = K.located_step_t(
+    s1, F, region, delta, bd, sp, cp, h, nloc, sa, hl = K.located_fixed_step(
         s, _lane_s(B, el), B[O_F, el], np.int64(B[O_REG, el]), B[O_DELTA, el], B[O_BD, el], B[O_SP, el],
         B[O_CP, el], np.int64(B[Q_REGPREV, el]), B[Q_DPREV, el], B[Q_BDPREV, el], dphi * j, dphi, B[Q_WA, el],
         B[O_WB, el], TB[m, 0, el], TB[m, 1, el], TB[m, 2, el], c, k, dynamic, max_iter, tol, TB[ja, 0, el],
-        TB[ja, 1, el], K.DQ_LINEAR, K.LOCATE_TOL_FIXED,
+        TB[ja, 1, el],
     )  # fmt: skip
     if nloc == 0:
         return
@@ -416,6 +416,9 @@ def _integrate(
             j0 = pos[P_J]
         else:
             _load_block(B, TB, nl, e0, X, A, W0, W1, total, n_steps, C, dynamic, status, work)
+        locating = False  # any lane of the block locates contact changes (K_LOC)
+        for el in range(nl):
+            locating = locating or B[R_K + K.K_LOC, el] != 0.0
         for j in range(j0, total):
             m = (j + 1) % n_steps
             el0 = 0
@@ -448,7 +451,7 @@ def _integrate(
                     done[e] = j // n_steps
                     _retire(B, el, e, r_old, X, A, stats, elapsed, B[Q_EL, el] + B[O_H, el], C[e], dynamic)
             # lanes that locate contact changes and changed the contact region in this step (not a split step)
-            for el in range(nl):
+            for el in range(nl if locating else 0):
                 if (
                     B[R_K + K.K_LOC, el] != 0.0
                     and B[Q_LIVE, el] != 0.0

@@ -61,6 +61,7 @@ from .drivers import (
     integrate_stats_lazy,
     integrate_stats_tab,
     integrate_tol,
+    located_fixed_step,
     located_step_t,
     split_resume,
     start_step,

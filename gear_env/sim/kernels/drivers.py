@@ -433,10 +433,9 @@ def stats_segment(
             break
         # step j changed the contact region and contact changes are located (K_LOC): take it again split at the
         # crossing (out of the hot loop, which stays free of calls)
-        s1, F, region, delta, bd, sp, cp, h, nloc, sa, hl = located_step_t(
+        s1, F, region, delta, bd, sp, cp, h, nloc, sa, hl = located_fixed_step(
             s, s1, F, region, delta, bd, sp, cp, reg_prev, d_prev, bd_prev, phi0 + dphi * j, dphi, wa, wb,
             tf[m, 0], tf[m, 1], tf[m, 2], c, kq, dynamic, max_iter, tol, tf[j % n_steps, 0], tf[j % n_steps, 1],
-            DQ_LINEAR, LOCATE_TOL_FIXED,
         )  # fmt: skip
         split = 1.0 if nloc > 0 else 0.0
         if nloc == 0:  # no crossing found: the unlocated step
@@ -619,6 +618,17 @@ def located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dp
         s1, F, region, delta, bd, sp, cp = s2, F2, region2, delta2, bd2, sp2, cp2
     h_last = 2.0 * dp / (wa + w_b)
     return s1, F, region, delta, bd, sp, cp, h_sum + h_last, n, sa, h_last
+
+
+@kernel
+def located_fixed_step(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dphi, w_a, w_b, ce, se, kk, c, k,
+                       dynamic, max_iter, tol, ce_a, se_a):  # fmt: skip
+    """:func:`located_step_t` of the fixed-step drivers that locate contact changes (``K_LOC``: :func:`stats_segment`
+    and the SIMD lanes' ``batch_kernels._locate_lane``), at ``DQ_LINEAR`` and the crossing tolerance
+    ``LOCATE_TOL_FIXED``. Not inlined: one compiled copy for both (so they agree bit for bit), and the one-system
+    loop keeps its registers (it calls this only after its hot loop)."""
+    return located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dphi, w_a, w_b, ce, se, kk, c, k,
+                          dynamic, max_iter, tol, ce_a, se_a, DQ_LINEAR, LOCATE_TOL_FIXED)  # fmt: skip
 
 
 @kernel
