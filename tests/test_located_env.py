@@ -94,7 +94,7 @@ def test_located_steps_bring_the_worst_orbit_within_1e_3(impacting):
         run = integrate(x, a, _consts(VC, locate), 1, w, w, 10, 64)
         err[locate] = float(np.max(np.abs(run.poincare[:, :10] - ref)))
     assert err[False] > 1e-3  # the unlocated steps' error there (1.09e-3)
-    assert err[True] < 0.6 * err[False], err
+    assert err[True] < 1e-3 and err[True] < 0.6 * err[False], err  # located: 3.6e-4
 
 
 def test_env_setting_single_equals_vector_and_survives_plant_changes():
