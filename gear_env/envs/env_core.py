@@ -464,10 +464,9 @@ class GearSpeedCore:
         if self.config.demand is None:
             demand = demand_next = self._zeros[:m]
         else:
-            last = self._dem.shape[1] - 1  # beyond the episode's max_steps the last value holds (as demand())
-            t = np.minimum(self.steps[rows], last)
-            demand = self._dem[rows, t]
-            demand_next = demand if is_reset else self._dem[rows, np.minimum(t + 1, last)]
+            steps = self.steps[rows]
+            demand = self.demand(steps, rows)
+            demand_next = demand if is_reset else self.demand(steps + 1, rows)
         EK.post_step(
             rows, st, ok, elapsed, w0, w1, demand, demand_next, is_reset, self.S, self.hist, self.tr_ref, self.fs,
             self.omega_n, self.steps, self.X, self.ACC, self.I, self._reward_cols, self._cost_cols, self.F,
