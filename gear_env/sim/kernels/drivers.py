@@ -626,7 +626,8 @@ def located_fixed_step(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a
     """:func:`located_step_t` of the fixed-step drivers that locate contact changes (``K_LOC``: :func:`stats_segment`
     and the SIMD lanes' ``batch_kernels._locate_lane``), at ``DQ_LINEAR`` and the crossing tolerance
     ``LOCATE_TOL_FIXED``. Not inlined: one compiled copy for both (so they agree bit for bit), and the one-system
-    loop keeps its registers (it calls this only after its hot loop)."""
+    loop keeps its registers (it calls this only after its hot loop). Units as there: states in b0 and b0 per unit
+    of natural time, times (returned: the step's and its last part's) in natural time (omega_n t), phases in rad."""
     return located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dphi, w_a, w_b, ce, se, kk, c, k,
                           dynamic, max_iter, tol, ce_a, se_a, DQ_LINEAR, LOCATE_TOL_FIXED)  # fmt: skip
 
