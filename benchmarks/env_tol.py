@@ -12,16 +12,18 @@ the cost the CPU time of the steps (the settings interleaved per seed, so drift 
     python benchmarks/env_tol.py --vector 16 --rounds 5   # also the vector env's env-steps/s, Fox-Goodwin vs 64 steps
 
 The Fox-Goodwin settings are ``params={"newmark_beta": 1/12}`` (``GearParams.newmark_beta``), at 64 and 96 steps,
-with the velocity correction (``"velocity_correction": True``, scheme ``"fox-goodwin-vc"``) at 64 and 68 and at 64
-with the contact changes located (``locate_contacts=True``), and with ``steps_per_period="auto"`` (48, 64 or 80
-steps by the contact loss of the step before; opt-in, the Fox-Goodwin ids keep 64).
+with the velocity correction (``"velocity_correction": True``, scheme ``"fox-goodwin-vc"``) at 64 and 68, at 64
+with the contact changes located (``locate_contacts=True``) or their kinks corrected (``correct_kinks=True``), and
+with ``steps_per_period="auto"`` (48, 64 or 80 steps by the contact loss of the step before; opt-in, the Fox-Goodwin
+ids keep 64).
 
     python benchmarks/env_tol.py --task-cost 20 --policy pretrained   # the cost on the task as a policy runs it
 
 ``--task-cost N`` runs N episodes of ``--policy`` on the task, on its Fox-Goodwin id (``GearSpeedDemand-v1`` for
 ``GearSpeedDemand-v0``; the corrected scheme since 2026-12-07, plain Fox-Goodwin before), on that id with
-``steps_per_period="auto"`` and on it with ``locate_contacts=True``, interleaved per episode, and prints the CPU
-ratios and the auto run's mean steps per mesh period (the counts chosen for steps 2 to the last of each episode).
+``steps_per_period="auto"``, on it with ``locate_contacts=True`` and with ``correct_kinks=True``, interleaved per
+episode, and prints the CPU ratios and the auto run's mean steps per mesh period (the counts chosen for steps 2 to the
+last of each episode).
 
 ``--json FILE`` writes the run's record (benchmarks/bench_record.py; benchmarks/make_tables.py reads it).
 """
@@ -48,6 +50,7 @@ SETTINGS = {
     "Fox-Goodwin-vc 68 steps": {"params": FOX_GOODWIN_VC, "steps_per_period": 68},
     "Fox-Goodwin auto": {"params": FOX_GOODWIN, "steps_per_period": "auto"},
     "Fox-Goodwin-vc 64 located": {"params": FOX_GOODWIN_VC, "locate_contacts": True},
+    "Fox-Goodwin-vc 64 corrected": {"params": FOX_GOODWIN_VC, "correct_kinks": True},
 }
 
 
@@ -78,6 +81,9 @@ def vector_rates(env_id: str, n: int, rounds: int, seconds: float) -> dict[str, 
         "Fox-Goodwin auto": GearSpeedVectorEnv(n, task_config(env_id, SETTINGS["Fox-Goodwin auto"])),
         "Fox-Goodwin-vc 64 steps": GearSpeedVectorEnv(n, task_config(env_id, {"params": FOX_GOODWIN_VC})),
         "Fox-Goodwin-vc 64 located": GearSpeedVectorEnv(n, task_config(env_id, SETTINGS["Fox-Goodwin-vc 64 located"])),
+        "Fox-Goodwin-vc 64 corrected": GearSpeedVectorEnv(
+            n, task_config(env_id, SETTINGS["Fox-Goodwin-vc 64 corrected"])
+        ),
     }
     rng = np.random.default_rng(1)
     for e in envs.values():
@@ -96,7 +102,8 @@ def vector_rates(env_id: str, n: int, rounds: int, seconds: float) -> dict[str, 
 
 def task_cost(env_id: str, spec: str, episodes: int, rec) -> None:
     """CPU of ``episodes`` episodes of policy ``spec`` on ``env_id``, on its Fox-Goodwin id, on that id with
-    ``steps_per_period="auto"`` and with ``locate_contacts=True``, interleaved per episode."""
+    ``steps_per_period="auto"``, with ``locate_contacts=True`` and with ``correct_kinks=True``, interleaved per
+    episode."""
     import gymnasium as gym
 
     from agents.registry import resolve_policy
@@ -110,6 +117,7 @@ def task_cost(env_id: str, spec: str, episodes: int, rec) -> None:
         fg_id: (fg_id, {}),
         f"{fg_id}, auto steps": (fg_id, {"steps_per_period": "auto"}),
         f"{fg_id}, contacts located": (fg_id, {"locate_contacts": True}),
+        f"{fg_id}, kinks corrected": (fg_id, {"correct_kinks": True}),
     }
     cpu = dict.fromkeys(runs, 0.0)
     counts: list[int] = []

@@ -8,6 +8,7 @@ fixed step count (192 at omega >= 0.27, more below) and, with ``--fox-goodwin N 
     python benchmarks/tol_low_omega.py --omegas 0.3 0.4 --tols 3e-3 3e-4 --periods 20
     python benchmarks/tol_low_omega.py --omegas 0.12 0.15 0.2 0.25 0.3 --tols --fox-goodwin 88 --periods 10
     python benchmarks/tol_low_omega.py --omegas 0.2 0.22 0.25 --tols --fox-goodwin-vc 64 --fox-goodwin-vc-located 64
+    python benchmarks/tol_low_omega.py --omegas 0.2 0.22 0.24 --tols --fox-goodwin-vc-corrected 64 --periods 20
 
 Prints, per model and omega, the error of each mode and the step count (for tol: the coarse N it ended with).
 """
@@ -36,6 +37,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fox-goodwin-vc-located", type=int, nargs="*", default=[], metavar="N",
                     help="also N steps of Fox-Goodwin with the velocity correction, contact changes located (the "
                     "environments' locate_contacts; the floor if higher)")  # fmt: skip
+    ap.add_argument("--fox-goodwin-vc-corrected", type=int, nargs="*", default=[], metavar="N",
+                    help="also N steps of Fox-Goodwin with the velocity correction, kinks corrected (the "
+                    "environments' correct_kinks; the floor if higher)")  # fmt: skip
     ap.add_argument("--periods", type=int, default=40, help="Poincare points compared (40)")
     args = ap.parse_args(argv)
     from contact_steps import located
@@ -50,6 +54,7 @@ def main(argv: list[str] | None = None) -> int:
             + [f"fox-goodwin {n}".ljust(16) for n in args.fox_goodwin]
             + [f"fox-goodwin-vc {n}".ljust(16) for n in args.fox_goodwin_vc]
             + [f"vc {n} located".ljust(16) for n in args.fox_goodwin_vc_located]
+            + [f"vc {n} corrected".ljust(16) for n in args.fox_goodwin_vc_corrected]
         )
     )
     for model in ("constant", "dynamic"):
@@ -68,9 +73,11 @@ def main(argv: list[str] | None = None) -> int:
                 err = float(np.max(np.abs(iv.poincare[:, :10] - ref[: args.periods])))
                 n_shown = s.steps_per_period // 2 if tol is not None else s.steps_per_period
                 cells.append(f"{err:8.1e} (N {n_shown:3d})")
-            for n in args.fox_goodwin_vc_located:
+            for n, corrected in [(n, False) for n in args.fox_goodwin_vc_located] + [
+                (n, True) for n in args.fox_goodwin_vc_corrected
+            ]:
                 nsp = max(n, min_steps_per_period(vc, w))
-                err = located(vc, model, w, x0, ref[: args.periods], nsp, args.periods)[0]  # contact_steps.py
+                err = located(vc, model, w, x0, ref[: args.periods], nsp, args.periods, corrected)[0]  # contact_steps
                 cells.append(f"{err:8.1e} (N {nsp:3d})")
             print(f"{model:8s} {w:6.2f} | " + " | ".join(cells), flush=True)
     return 0

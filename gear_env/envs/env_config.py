@@ -145,6 +145,9 @@ class GearSpeedConfig(TableConfig):
         locate_contacts: False (default) or True: a Newmark step whose contact region changes is taken again split
             at the crossing (``gear_env.sim.kernels.located_step_t``); fixed steps only. The single and the
             vector env stay identical.
+        correct_kinks: False (default) or True: a Newmark step whose contact region changes is corrected for the
+            kink of the backlash force inside it, without a solve (``gear_env.sim.kernels.kink_correct_t``); fixed
+            steps only, not with ``locate_contacts``. The single and the vector env stay identical.
         randomize_params: if True, every episode multiplies kappa, the three damping ratios and
             the two torques by independent factors uniform in [1 - s, 1 + s], s = ``randomize_scale``.
         randomize_scale: relative jitter s, in [0, 0.5].

@@ -33,7 +33,18 @@ from ..sim.integration import (
     integrate,
 )
 from ..sim.linear import stability_frequency, stable_betas
-from ..sim.params import C_BETA, C_FS, C_LOC, C_VC, FOX_GOODWIN_BETA, GearParams, model_code, refuse_extensions
+from ..sim.params import (
+    C_BETA,
+    C_FS,
+    C_LOC,
+    C_VC,
+    CONTACTS_CORRECTED,
+    CONTACTS_LOCATED,
+    FOX_GOODWIN_BETA,
+    GearParams,
+    model_code,
+    refuse_extensions,
+)
 from . import env_kernels as EK
 from . import env_terms as ET
 from . import force_level as FL
@@ -200,7 +211,8 @@ class GearSpeedCore:
         self.X = np.zeros((n, K.NSTATE))
         self.A = np.zeros((n, K.NDOF))
         self.C = np.tile(np.asarray(cfg.params.consts, float), (n, 1))
-        self._loc = 1.0 if cfg.locate_contacts else 0.0  # the kernels' flag (C_LOC), kept over plant changes
+        # the kernels' C_LOC (how a step over a contact change is taken), kept over plant changes
+        self._loc = CONTACTS_LOCATED if cfg.locate_contacts else CONTACTS_CORRECTED if cfg.correct_kinks else 0.0
         self.C[:, C_LOC] = self._loc
         self._C_ro = K.readonly(self.C)  # rows as the kernels take them (one compiled signature)
         self.codes = np.full(n, self.code, np.int64)

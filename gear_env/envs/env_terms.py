@@ -326,6 +326,14 @@ def _locate(label: str, v: Any, cfg: Any) -> bool:
     return b
 
 
+def _correct(label: str, v: Any, cfg: Any) -> bool:
+    """A bool; True only with fixed steps and without ``locate_contacts`` (two ways to treat the same steps)."""
+    b = _locate(label, v, cfg)
+    if b and cfg.locate_contacts:
+        raise ValueError(f"{label} and locate_contacts treat the same steps two ways: set one of them")
+    return b
+
+
 def _tol(label: str, v: Any, cfg: Any) -> float | None:
     """None (fixed steps) or the error per mesh period in b0 units, in [1e-8, 0.1]."""
     from ..sim.params import NEWMARK_BETA  # lazy: keeps this module free of numba
@@ -567,6 +575,11 @@ SETTINGS: tuple[Setting, ...] = (
             "locate the contact changes inside the Newmark steps (a step whose contact region changes is taken again "
             "split at the crossing, `gear_env.sim.kernels.located_step_t`): fixed steps only (not with `tol`, which "
             "locates them itself); single and vector env alike"),
+    Setting("correct_kinks", False, _correct, "bool",
+            "correct a Newmark step whose contact region changes for the kink of the backlash force inside it, "
+            "without a solve (`gear_env.sim.kernels.kink_correct_t`): more accurate than `locate_contacts` at "
+            "omega >= 0.3 and cheaper; fixed steps only, not with `tol` or `locate_contacts`; single and vector env "
+            "alike"),
     Setting("randomize_params", False, boolean, "bool", "per-episode jitter of kappa, xi_m, xi_p, xi_g, T_p, T_g"),
     Setting("randomize_scale", 0.1, real(0.0, 0.5), "[0, 0.5]",
             "relative jitter (uniform factors in [1-s, 1+s], seeded)"),

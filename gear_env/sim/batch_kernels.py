@@ -289,10 +289,21 @@ def _locate_lane(B, TB, el, m, j, n_steps, dphi, c, dynamic, max_iter, tol):
     again from its pre-step state (R_OLD rows), split at the crossing (``kernels.located_step_t``, as
     ``kernels.stats_segment`` does), and store the result like :func:`_redo_lane` (a located step counts as split);
     the R_OLD accelerations become those at the start of the step's last part, for its Poincare sample. A step in
-    which no crossing is found keeps its unlocated result. Compiled apart from the vectorised loops (rare)."""
+    which no crossing is found keeps its unlocated result. A lane that corrects kinks (``kernels.corrects_kink``) has
+    its result corrected instead (``kernels.corrected_fixed_step``; not a split step). Compiled apart from the
+    vectorised loops (rare)."""
     k = _lane_k(B, el)
     s = _lane_s(B, el, R_OLD)
     ja = j % n_steps
+    if K.corrects_kink(k, np.int64(B[Q_REGPREV, el]), np.int64(B[O_REG, el])):
+        wa = B[Q_WA, el]
+        wb = B[O_WB, el]
+        s1, F, region, delta, bd, sp, cp = K.corrected_fixed_step(
+            s, _lane_s(B, el), np.int64(B[Q_REGPREV, el]), TB[ja, 0, el], TB[ja, 1, el], wa, TB[m, 0, el],
+            TB[m, 1, el], TB[m, 2, el], wb, K.step_coeffs(2.0 * dphi / (wa + wb), k), k, dynamic,
+        )  # fmt: skip
+        _store_lane(B, el, s, s1, F, region, delta, bd, sp, cp, 0, dynamic)
+        return
     s1, F, region, delta, bd, sp, cp, h, nloc, sa, hl = K.located_fixed_step(
         s, _lane_s(B, el), B[O_F, el], np.int64(B[O_REG, el]), B[O_DELTA, el], B[O_BD, el], B[O_SP, el],
         B[O_CP, el], np.int64(B[Q_REGPREV, el]), B[Q_DPREV, el], B[Q_BDPREV, el], dphi * j, dphi, B[Q_WA, el],

@@ -74,7 +74,13 @@ def scheme_name(newmark_beta: float, velocity_correction: bool) -> str | None:
 
 C_BETA = 30  # Newmark beta of the integrator (numerics: GearParams.newmark_beta)
 C_VC = 31  # 1.0 with GearParams.velocity_correction (Fox-Goodwin's velocity corrected in the forces), else 0.0
-C_LOC = 32  # 1.0: contact changes located inside the steps (the environments' locate_contacts; GearParams: 0.0)
+C_LOC = 32  # a contact change inside a fixed step: 0.0 stepped over (GearParams), else CONTACTS_LOCATED / _CORRECTED
+CONTACTS_LOCATED = 1.0
+"""``C_LOC``: the fixed-step drivers take a step whose contact region changes again, split at the crossing
+(``kernels.located_fixed_step``; the environments' ``locate_contacts=True``)."""
+CONTACTS_CORRECTED = 2.0
+"""``C_LOC``: the fixed-step drivers correct such a step for the kink of the backlash force inside it, without a
+solve (``kernels.kink_correct_t``; the environments' ``correct_kinks=True``)."""
 N_CONSTS = 33  # length of the fixed part; the harmonic tail follows it
 C_TAIL = N_CONSTS  # tail: kappa_n (cos, sin)(phi_kn), n = 1..N_k, then E_n / b0 (cos, sin)(phi_en), n = 1..N_e
 MAX_HARMONICS = 64

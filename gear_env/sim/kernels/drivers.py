@@ -11,10 +11,12 @@ import math
 
 import numpy as np
 
+from ..params import CONTACTS_CORRECTED
 from .jit import kernel, kernel_inline, readonly, runtime_int, runtime_true
 from .layout import (
     DIVERGED,
     K_LOC,
+    K_MU,
     K_VC,
     N_LOOP_ACC,
     NDOF,
@@ -73,6 +75,7 @@ from .newmark import (
     crossing_side_t,
     crossing_t,
     guess_t,
+    kink_correct_t,
     load_t,
     newmark_try_t,
     omega_step_t,
@@ -431,14 +434,21 @@ def stats_segment(
             j += 1
         if not pending:
             break
-        # step j changed the contact region and contact changes are located (K_LOC): take it again split at the
-        # crossing (out of the hot loop, which stays free of calls)
-        s1, F, region, delta, bd, sp, cp, h, nloc, sa, hl = located_fixed_step(
-            s, s1, F, region, delta, bd, sp, cp, reg_prev, d_prev, bd_prev, phi0 + dphi * j, dphi, wa, wb,
-            tf[m, 0], tf[m, 1], tf[m, 2], c, kq, dynamic, max_iter, tol, tf[j % n_steps, 0], tf[j % n_steps, 1],
-        )  # fmt: skip
+        # step j changed the contact region and contact changes are located or corrected (K_LOC): take it again
+        # split at the crossing, or correct its kink (out of the hot loop, which stays free of calls)
+        nloc = 0
+        if corrects_kink(k, reg_prev, region):
+            s1, F, region, delta, bd, sp, cp = corrected_fixed_step(
+                s, s1, reg_prev, tf[j % n_steps, 0], tf[j % n_steps, 1], wa, tf[m, 0], tf[m, 1], tf[m, 2], wb, hc, kq,
+                dynamic,
+            )  # fmt: skip
+        else:
+            s1, F, region, delta, bd, sp, cp, h, nloc, sa, hl = located_fixed_step(
+                s, s1, F, region, delta, bd, sp, cp, reg_prev, d_prev, bd_prev, phi0 + dphi * j, dphi, wa, wb,
+                tf[m, 0], tf[m, 1], tf[m, 2], c, kq, dynamic, max_iter, tol, tf[j % n_steps, 0], tf[j % n_steps, 1],
+            )  # fmt: skip
         split = 1.0 if nloc > 0 else 0.0
-        if nloc == 0:  # no crossing found: the unlocated step
+        if nloc == 0:  # corrected, or no crossing found: the whole step
             h = hc[0]
             sa = s
             hl = h
@@ -630,6 +640,23 @@ def located_fixed_step(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a
     of natural time, times (returned: the step's and its last part's) in natural time (omega_n t), phases in rad."""
     return located_step_t(s, s1, F, region, delta, bd, sp, cp, reg0, d0, bd0, phi_a, dphi, w_a, w_b, ce, se, kk, c, k,
                           dynamic, max_iter, tol, ce_a, se_a, DQ_LINEAR, LOCATE_TOL_FIXED)  # fmt: skip
+
+
+@kernel_inline
+def corrects_kink(k, reg0, region):
+    """Whether the fixed-step drivers correct the kink of a step from contact region ``reg0`` into ``region``
+    (:func:`corrected_fixed_step`) rather than locate it (:func:`located_fixed_step`): with ``K_LOC`` =
+    ``params.CONTACTS_CORRECTED``, across one contact edge (a step from one flank to the other is located), without the
+    friction extension (whose tilted force the correction does not model)."""
+    return k[K_LOC] == CONTACTS_CORRECTED and (reg0 == 0 or region == 0) and k[K_MU] == 0.0
+
+
+@kernel
+def corrected_fixed_step(s, s1, reg0, ce0, se0, w_a, ce, se, kk, w_b, hc, k, dynamic):
+    """``newmark.kink_correct_t`` for the fixed-step drivers (:func:`stats_segment` and the SIMD lanes'
+    ``batch_kernels._locate_lane``). Not inlined, as :func:`located_fixed_step`: one compiled copy for both (so they
+    agree bit for bit), and the one-system loop keeps its registers. Units as there (b0, natural time)."""
+    return kink_correct_t(s, s1, reg0, ce0, se0, w_a, ce, se, kk, w_b, hc, k, dynamic)
 
 
 @kernel

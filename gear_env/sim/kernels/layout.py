@@ -126,7 +126,7 @@ WORK_SIZE = 80
     K_SIN_PHI_E,  # sin phi_e
     K_BETA,  # Newmark beta (GearParams.newmark_beta; 1/4 = the paper's average acceleration)
     K_VC,  # velocity correction w: the forces feel v - w h (a_new - a_old) (VC_WEIGHT or 0)
-    K_LOC,  # 1.0: the fixed-step drivers locate contact changes inside the step (drivers.located_step_t)
+    K_LOC,  # c[C_LOC]: how the fixed-step drivers take a contact change inside a step (params.CONTACTS_*)
 ) = range(23)
 N_K = K_LOC + 1
 """Number of step constants (length of :func:`kernels.mesh.step_consts`)."""

@@ -345,6 +345,107 @@ def crossing_side_t(reg0, region1):
 
 
 @kernel_inline
+def kink_correct_t(s, s1, reg0, ce0, se0, w_a, ce, se, kk, w_b, hc, k, dynamic):
+    """The Newmark step from s (contact region ``reg0``) to s1 that stepped over one contact edge, corrected for the
+    kink of the backlash force inside it, without a solve. ``ce0, se0``: the excitation at its start (omega ``w_a``),
+    ``ce, se, kk`` at its end (``w_b``); ``hc``: its :func:`step_coeffs`. Returns (state, F, region, Delta, B_d,
+    sin psi, cos psi) at its end.
+
+    The gap function G (Delta - side B_d) over the step is the cubic Hermite interpolant of its values and rates at
+    both ends (tau in [0, 1]); its root theta is the crossing. After it the force on the new branch differs from the
+    old branch's by sg G (sg = +-kk), so the accelerations by D(tau) = -w sg G(tau) (w: :func:`mesh_direction_t`,
+    1 on U). Newmark's step took D as if it were smooth, with a(1) holding D(1): v by h D(1) / 2 and q by beta h^2
+    D(1), where the exact increments are h int_theta^1 D and h^2 int_theta^1 (1 - tau) D. Newmark's velocity of a
+    smooth solution also carries the bias (1/6 - beta) h^2 a' (what makes Fox-Goodwin's positions fourth order), so
+    after the kink it should carry that of the new branch's D' too. The predictors of the step are shifted by these
+    differences, and the accelerations answer by one linear Newton solve at the end's mesh (exact for the constant
+    model's piecewise-linear force; the dynamic model's geometry held). F, Delta, B_d and the region at the end are
+    updated to first order (psi held). The local error of the step drops from O(h^2 D') to O(h^3): measured in
+    docs/SIMULATOR.md ("Contact changes corrected inside the fixed steps")."""
+    h, bh2, gh, hh, h1, idd0, idd2 = hc
+    beta = k[K_BETA]
+    wh = k[K_VC] * h
+    # the end: positions and the velocity the forces felt (output_t), and its mesh
+    tf = (s1[0], s1[1], s1[2], s1[3], s1[4], s1[5] - wh * (s1[10] - s[10]), s1[6] - wh * (s1[11] - s[11]),
+          s1[7] - wh * (s1[12] - s[12]), s1[8] - wh * (s1[13] - s[13]), s1[9] - wh * (s1[14] - s[14]))  # fmt: skip
+    delta, ddelta, bd, _f, region, sp, cp, db0, db1, dp0, dp1 = mesh_t(tf, ce, se, w_b, k, dynamic)
+    side = crossing_side_t(reg0, region)
+    g0, r0 = gap_rate_t(s, ce0, se0, w_a, k, dynamic, side)
+    g1 = delta - side * bd
+    r1 = ddelta - side * (db0 * (tf[5] - tf[7]) + db1 * (tf[6] - tf[8]))
+    # G(tau) = g0 + m0 tau + c2 tau^2 + c3 tau^3, and its root th in [0, 1] (Newton safeguarded by bisection)
+    m0 = h * r0
+    m1 = h * r1
+    c3 = 2.0 * g0 + m0 - 2.0 * g1 + m1
+    c2 = -3.0 * g0 - 2.0 * m0 + 3.0 * g1 - m1
+    lo = 0.0
+    hi = 1.0
+    plo = g0
+    th = g0 / (g0 - g1) if g0 != g1 else 0.5
+    for _it in range(20):
+        p = ((c3 * th + c2) * th + m0) * th + g0
+        dp = (3.0 * c3 * th + 2.0 * c2) * th + m0
+        if p * plo > 0.0:
+            lo = th
+            plo = p
+        else:
+            hi = th
+        nt = th - p / dp if dp != 0.0 else -1.0
+        if not lo < nt < hi:
+            nt = 0.5 * (lo + hi)
+        done = abs(nt - th) <= 1e-12
+        th = nt
+        if done:
+            break
+    t2 = th * th
+    t3 = t2 * th
+    # int_theta^1 G and int_theta^1 tau G
+    iv = (g0 + 0.5 * m0 + c2 / 3.0 + 0.25 * c3) - th * (g0 + 0.5 * m0 * th + c2 * t2 / 3.0 + 0.25 * c3 * t3)
+    it = (0.5 * g0 + m0 / 3.0 + 0.25 * c2 + 0.2 * c3) - t2 * (0.5 * g0 + m0 * th / 3.0 + 0.25 * c2 * t2 + 0.2 * c3 * t3)
+    sg = kk if reg0 == 0 else -kk
+    w0, w1, w2, w3 = mesh_direction_t(sp, cp, 0.0, k, dynamic, region, db0, db1, dp0, dp1, tf[0] - tf[2],
+                                      tf[1] - tf[3])  # fmt: skip
+    # (exact - Newmark) of D's part of the step, per unit of -w: velocity (with the new bias) and positions
+    cv = -sg * h * (iv + (1.0 / 6.0 - beta) * m1 - 0.5 * g1)
+    cq = -sg * h * h * (iv - it - beta * g1)
+    dq0, dq1, dq2, dq3, dq4 = cq * w0, cq * w1, cq * w2, cq * w3, cq
+    dv0, dv1, dv2, dv3, dv4 = cv * w0, cv * w1, cv * w2, cv * w3, cv
+    # the accelerations' answer to the shifted predictors: the Newton matrix of newton_delta_t at the end's mesh
+    c_p, c_g, k_p, k_g = bearing_t(k)
+    gg0, gg1, gg2, gg3, gg4 = deflection_gradient_t(sp, cp)
+    dF_ddd, dF_dd, dF_dbd = force_gradient_t(delta, bd, region, kk, k)
+    dFs = (dF_ddd * (gg0 * dv0 + gg1 * dv1 + gg2 * dv2 + gg3 * dv3 + gg4 * dv4)
+           + dF_dd * (gg0 * dq0 + gg1 * dq1 + gg2 * dq2 + gg3 * dq3 + gg4 * dq4)
+           + dF_dbd * (db0 * (dq0 - dq2) + db1 * (dq1 - dq3)))  # fmt: skip
+    cg = gh * dF_ddd + bh2 * dF_dd
+    cb = bh2 * dF_dbd
+    e0, e1, e2, e3, e4 = rank_one_solve_t(
+        c_p * dv0 + k_p * dq0 + w0 * dFs, c_p * dv1 + k_p * dq1 + w1 * dFs, c_g * dv2 + k_g * dq2 + w2 * dFs,
+        c_g * dv3 + k_g * dq3 + w3 * dFs, dFs, w0, w1, w2, w3, cg * gg0 + cb * db0, cg * gg1 + cb * db1,
+        cg * gg2 - cb * db0, cg * gg3 - cb * db1, cg * gg4, idd0, idd2,
+    )  # fmt: skip
+    dq0 += bh2 * e0
+    dq1 += bh2 * e1
+    dq2 += bh2 * e2
+    dq3 += bh2 * e3
+    dq4 += bh2 * e4
+    dv0 += gh * e0
+    dv1 += gh * e1
+    dv2 += gh * e2
+    dv3 += gh * e3
+    dv4 += gh * e4
+    t = (tf[0] + dq0, tf[1] + dq1, tf[2] + dq2, tf[3] + dq3, tf[4] + dq4,
+         tf[5] + dv0, tf[6] + dv1, tf[7] + dv2, tf[8] + dv3, tf[9] + dv4)  # fmt: skip
+    # the end's mesh to first order in the shift (psi held)
+    delta += gg0 * dq0 + gg1 * dq1 + gg2 * dq2 + gg3 * dq3 + gg4 * dq4
+    ddelta += gg0 * dv0 + gg1 * dv1 + gg2 * dv2 + gg3 * dv3 + gg4 * dv4
+    bd += db0 * (dq0 - dq2) + db1 * (dq1 - dq3)
+    f, region = backlash(delta, bd)
+    s2 = state_t(t, s1[10] + e0, s1[11] + e1, s1[12] + e2, s1[13] + e3, s1[14] + e4, s, wh)
+    return s2, force_t(ddelta, f, kk, k), region, delta, bd, sp, cp
+
+
+@kernel_inline
 def branch_part_t(s, g1, theta, reg0, phi_a, dphi, w_a, w_b, c, k, dynamic, max_iter, tol):
     """The first part, theta of its phase increment dphi, of a step from s with the force held on
     the branch ``reg0`` (omega^2 linear in phase; Newton guess: the accelerations interpolated
