@@ -8,10 +8,10 @@ systems are "lanes": the common case of a step (predictor, one Newton iteration,
 model's Taylor update, the statistics) is a loop over lanes without calls or early exits, which
 LLVM vectorises (4 lanes per AVX2 instruction). The rare lanes whose first Newton iteration did
 not finish (a contact change inside the step, a long step at low omega, a step to be split, the
-friction extension) are then redone one by one with
-the scalar Newton iteration (``kernels.newmark_try_t``), which repeats the same first iteration
-and goes on; a step that Newton does not finish at all (rarer still) stops the kernel, is split
-into sub-steps from Python (:func:`_split_lane`, compiled on first need, as
+friction extension) are then finished one by one with the scalar Newton iteration
+(``kernels.newmark_resume_t``, which goes on from the lanes' first iteration, or ``kernels.newmark_try_t``
+from the start where friction is on or the iteration failed); a step that Newton does not finish at
+all (rarer still) stops the kernel, is split into sub-steps from Python (:func:`_split_lane`, compiled on first need, as
 ``kernels.split_resume`` for one system) and the kernel goes on. So every lane follows exactly
 the arithmetic of the scalar kernel.
 
@@ -45,14 +45,18 @@ R_OLD = R_G + K.NDOF
 R_K = R_OLD + K.NSTATE + 2 * K.NDOF
 # step outputs
 # (O_HL: the natural time of the step's last part, what the corrected velocity of a Poincare sample takes
-# (newmark.output_t): the step's own, that of the part after a located contact change, 0 after a split step)
-O_F, O_REG, O_DELTA, O_BD, O_SP, O_CP, O_H, O_WB, O_DONE, O_SPLIT, O_BAD, O_HL = range(R_K + N_K, R_K + N_K + 12)
+# (newmark.output_t): the step's own, that of the part after a located contact change, 0 after a split step;
+# O_RESUME: 1 where the first Newton iteration returned NEWTON_MORE without friction, so that the scalar redo
+# resumes from its iterate, newmark.newmark_resume_t; O_DMAX: that iteration's largest update)
+O_F, O_REG, O_DELTA, O_BD, O_SP, O_CP, O_H, O_WB, O_DONE, O_SPLIT, O_BAD, O_HL, O_RESUME, O_DMAX = range(
+    R_K + N_K, R_K + N_K + 14
+)
 # accumulators (as in kernels.integrate_stats_tab) and per-lane settings
 (
     Q_T, Q_N, Q_NSPLIT, Q_SEP, Q_BACK, Q_BACK_IMP, Q_DRIVE_IMP, Q_FSUM, Q_FSQ, Q_TRSQ, Q_RPMAX,
     Q_FMAX, Q_FMIN, Q_UMAX, Q_UMIN, Q_DMAX, Q_DMIN, Q_BDMAX, Q_BDMIN, Q_SPMAX, Q_SPMIN,
     Q_FPREV, Q_TRPREV, Q_REGPREV, Q_EL, Q_LIVE, Q_W0, Q_WW, Q_WA, Q_DPREV, Q_BDPREV,
-) = range(O_HL + 1, O_HL + 32)  # fmt: skip
+) = range(O_DMAX + 1, O_DMAX + 32)  # fmt: skip
 N_ROWS = Q_BDPREV + 1
 
 
@@ -110,8 +114,9 @@ def _first_pass(B, TB, nl, m, jj, dphi, dynamic, tol):
         se = TB[m, 1, e]
         kk = TB[m, 2, e]
         pv, t, mesh = K.newton_start_t(s, g, ce, se, wb, hc, k, dynamic)
-        code, a, t, mesh, fin = K.newton_iter_t(pv, g, t, mesh, ce, se, kk, wb, hc, k, dynamic, tol, True, False)
+        code, a, t, mesh, fin, dmax = K.newton_iter_t(pv, g, t, mesh, ce, se, kk, wb, hc, k, dynamic, tol, True, False)
         ok = code == K.NEWTON_DONE and k[K.K_MU] == 0.0  # steps with friction: redone by the scalar path
+        more = code == K.NEWTON_MORE and k[K.K_MU] == 0.0  # the scalar redo resumes from this iterate
         # the pre-step state and guess, for the scalar redo (written out: a loop here over the
         # tuple stops the vectorisation)
         B[R_OLD + 0, e] = s[0]
@@ -152,6 +157,8 @@ def _first_pass(B, TB, nl, m, jj, dphi, dynamic, tol):
         B[O_HL, e] = hc[0]
         B[O_WB, e] = wb
         B[O_DONE, e] = 1.0 if ok else 0.0
+        B[O_RESUME, e] = 1.0 if more else 0.0
+        B[O_DMAX, e] = dmax
         B[O_SPLIT, e] = 0.0
 
 
@@ -224,7 +231,8 @@ def _stats_pass(B, nl):
 @kernel
 def _redo_lane(B, TB, el, m, j, dphi, c, dynamic, max_iter, tol):
     """Step j of lane el again from its pre-step state (R_OLD rows) with the scalar Newton
-    iteration (``kernels.newmark_try_t``: the same first iteration, then more) and store the
+    iteration (``kernels.newmark_try_t``: the same first iteration, then more; from the first pass's iterate on,
+    ``kernels.newmark_resume_t``, where that iteration returned NEWTON_MORE without friction) and store the
     result like :func:`_first_pass`. Returns OK, or SPLIT_PENDING if Newton does not finish the
     step: then :func:`_split_lane`, compiled on first need, takes it in sub-steps (as
     ``kernels.newmark_step_t`` would). Compiled apart from the vectorised loops (it is rare, and
@@ -234,10 +242,16 @@ def _redo_lane(B, TB, el, m, j, dphi, c, dynamic, max_iter, tol):
     wb = B[O_WB, el]
     hc = K.step_coeffs(2.0 * dphi / (wa + wb), k)
     s = _lane_s(B, el, R_OLD)
-    ok, s1, F, region, delta, bd, sp, cp = K.newmark_try_t(
-        s, _lane_g(B, el, R_OLD + K.NSTATE + K.NDOF), TB[m, 0, el], TB[m, 1, el], TB[m, 2, el], wb, hc, k, dynamic,
-        max_iter, tol,
-    )  # fmt: skip
+    if B[O_RESUME, el] != 0.0:  # from the first iteration's iterate (the accelerations of the R_S rows)
+        ok, s1, F, region, delta, bd, sp, cp = K.newmark_resume_t(
+            s, _lane_g(B, el, R_S + K.NSTATE), B[O_DMAX, el], np.int64(B[O_REG, el]), TB[m, 0, el], TB[m, 1, el],
+            TB[m, 2, el], wb, hc, k, dynamic, max_iter, tol,
+        )  # fmt: skip
+    else:
+        ok, s1, F, region, delta, bd, sp, cp = K.newmark_try_t(
+            s, _lane_g(B, el, R_OLD + K.NSTATE + K.NDOF), TB[m, 0, el], TB[m, 1, el], TB[m, 2, el], wb, hc, k,
+            dynamic, max_iter, tol,
+        )  # fmt: skip
     if not ok:
         return K.SPLIT_PENDING
     _store_lane(B, el, s, s1, F, region, delta, bd, sp, cp, 0, dynamic)

@@ -198,6 +198,7 @@ from .newmark import (
     kink_correct_t,
     load_t,
     newmark_branch_try_t,
+    newmark_resume_t,
     newmark_step,
     newmark_step_t,
     newmark_try_t,

@@ -178,10 +178,8 @@ NEWTON_BAD = 2  # newton_iter_t: non-finite update
 
 
 @kernel_inline
-def newton_start_t(s, g, ce, se, w_b, hc, k, dynamic):
-    """Predictors and the first corrector of a Newmark step from the state tuple s = (q, v, a)
-    with the guess g of the end-of-step acceleration. Returns (predictors pv = (q~, v~), corrected
-    (q, v) t at g, :func:`mesh_t` at t)."""
+def predictors_t(s, hc):
+    """Newmark's predictors pv = (q~, v~) of a step from the state tuple s = (q, v, a) (``hc``: :func:`step_coeffs`)."""
     h, bh2, gh, hh, h1, idd0, idd2 = hc
     qp0 = s[0] + h * s[5] + hh * s[10]
     qp1 = s[1] + h * s[6] + hh * s[11]
@@ -193,8 +191,16 @@ def newton_start_t(s, g, ce, se, w_b, hc, k, dynamic):
     vp2 = s[7] + h1 * s[12]
     vp3 = s[8] + h1 * s[13]
     vp4 = s[9] + h1 * s[14]
-    pv = (qp0, qp1, qp2, qp3, qp4, vp0, vp1, vp2, vp3, vp4)
-    t = corrector_t(pv, g[0], g[1], g[2], g[3], g[4], bh2, gh)
+    return (qp0, qp1, qp2, qp3, qp4, vp0, vp1, vp2, vp3, vp4)
+
+
+@kernel_inline
+def newton_start_t(s, g, ce, se, w_b, hc, k, dynamic):
+    """Predictors and the first corrector of a Newmark step from the state tuple s = (q, v, a)
+    with the guess g of the end-of-step acceleration. Returns (predictors pv = (q~, v~), corrected
+    (q, v) t at g, :func:`mesh_t` at t)."""
+    pv = predictors_t(s, hc)
+    t = corrector_t(pv, g[0], g[1], g[2], g[3], g[4], hc[1], hc[2])
     return pv, t, mesh_t(t, ce, se, w_b, k, dynamic)
 
 
@@ -206,9 +212,10 @@ def newton_iter_t(
     vectorises across systems, see ``batch_kernels``).
 
     ``a`` is the current iterate of the end-of-step acceleration, ``t`` = corrector at a and
-    ``mesh`` = :func:`mesh_t` at t. Returns (code, a, t, mesh, fin) with code NEWTON_MORE,
+    ``mesh`` = :func:`mesh_t` at t. Returns (code, a, t, mesh, fin, dmax) with code NEWTON_MORE,
     NEWTON_DONE (then (t, a) is the new state and fin = (F, region, Delta, B_d, sin psi,
-    cos psi) at its end) or NEWTON_BAD (non-finite update). With ``taylor_only`` (dynamic model)
+    cos psi) at its end) or NEWTON_BAD (non-finite update), and dmax the largest |update| of a (the batch kernel
+    keeps it to resume the iteration, :func:`newmark_resume_t`). With ``taylor_only`` (dynamic model)
     an iteration that the Taylor update does not finish returns NEWTON_MORE without evaluating
     the geometry again (the batch kernel redoes such steps with the scalar path). With
     ``friction=False`` the friction extension is ignored (no tanh call; the batch kernel redoes
@@ -228,7 +235,7 @@ def newton_iter_t(
     an = (a0, a1, a2, a3, a4)
     dmax = max(abs(e0), abs(e1), abs(e2), abs(e3), abs(e4))
     if not math.isfinite(dmax):
-        return NEWTON_BAD, an, t, mesh, (F, region, delta, bd, sp, cp)
+        return NEWTON_BAD, an, t, mesh, (F, region, delta, bd, sp, cp), dmax
     t = corrector_t(pv, a0, a1, a2, a3, a4, bh2, gh)
     if dynamic != 0 and bh2 * dmax <= dq_lin:
         # Final update of the dynamic model: the geometry at the new positions is the
@@ -239,9 +246,9 @@ def newton_iter_t(
         delta1, ddelta1 = deflection_t(t, sp1, cp1, dp0, dp1, ce, se, w_b, k, dynamic)
         f1, region1 = backlash(delta1, bd1)
         if region1 == region:
-            return NEWTON_DONE, an, t, mesh, (force_t(ddelta1, f1, kk, k), region1, delta1, bd1, sp1, cp1)
+            return NEWTON_DONE, an, t, mesh, (force_t(ddelta1, f1, kk, k), region1, delta1, bd1, sp1, cp1), dmax
     if dynamic != 0 and taylor_only:
-        return NEWTON_MORE, an, t, mesh, (F, region, delta, bd, sp, cp)
+        return NEWTON_MORE, an, t, mesh, (F, region, delta, bd, sp, cp), dmax
     old_region = region
     mesh = mesh_t(t, ce, se, w_b, k, dynamic)
     delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
@@ -254,8 +261,8 @@ def newton_iter_t(
     if region == old_region and (
         dynamic == 0 or bh2 * dmax <= dq_lin or dmax <= tol * (1.0 + max(abs(a0), abs(a1), abs(a2), abs(a3), abs(a4)))
     ):
-        return NEWTON_DONE, an, t, mesh, (F, region, delta, bd, sp, cp)
-    return NEWTON_MORE, an, t, mesh, (F, region, delta, bd, sp, cp)
+        return NEWTON_DONE, an, t, mesh, (F, region, delta, bd, sp, cp), dmax
+    return NEWTON_MORE, an, t, mesh, (F, region, delta, bd, sp, cp), dmax
 
 
 @kernel_inline
@@ -271,10 +278,43 @@ def newmark_try_t(s, g, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol, dq_lin=D
     a = (g[0], g[1], g[2], g[3], g[4])
     fin = (0.0, 0, 0.0, 0.0, 0.0, 0.0)
     for _it in range(max_iter):
-        code, a, t, mesh, fin = newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, False, True,
-                                              dq_lin)  # fmt: skip
+        code, a, t, mesh, fin, _dm = newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, False, True,
+                                                   dq_lin)  # fmt: skip
         if code == NEWTON_DONE:
             s1 = state_t(t, a[0], a[1], a[2], a[3], a[4], s, k[K_VC] * hc[0])
+            return True, s1, fin[0], fin[1], fin[2], fin[3], fin[4], fin[5]
+        if code == NEWTON_BAD:
+            break
+    return False, s, fin[0], fin[1], fin[2], fin[3], fin[4], fin[5]
+
+
+@kernel_inline
+def newmark_resume_t(s, a, dmax, old_region, ce, se, kk, w_b, hc, k, dynamic, max_iter, tol):
+    """:func:`newmark_try_t` from its first Newton iterate on: the SIMD lanes (``batch_kernels``) took the first
+    iteration (:func:`newton_iter_t` with ``taylor_only``, no friction) and it returned NEWTON_MORE with the iterate
+    ``a``, its largest update ``dmax`` and (dynamic model) the region ``old_region`` of the mesh it started from. The
+    corrector at ``a`` is rebuilt from s's predictors and the first iteration's remaining checks are made as
+    :func:`newton_iter_t` makes them without ``taylor_only``, so the result is :func:`newmark_try_t`'s bit for bit
+    (friction off) at one Newton iteration and one mesh evaluation less. Returns as :func:`newmark_try_t`."""
+    h, bh2, gh, hh, h1, idd0, idd2 = hc
+    pv = predictors_t(s, hc)
+    a0, a1, a2, a3, a4 = a
+    t = corrector_t(pv, a0, a1, a2, a3, a4, bh2, gh)
+    mesh = mesh_t(t, ce, se, w_b, k, dynamic)
+    delta, ddelta, bd, f, region, sp, cp, db0, db1, dp0, dp1 = mesh
+    F = force_t(ddelta, f, kk, k)
+    fin = (F, region, delta, bd, sp, cp)
+    # the end of newton_iter_t's first iteration (the constant model's returned NEWTON_MORE only on a region change)
+    if (
+        dynamic != 0
+        and region == old_region
+        and (bh2 * dmax <= DQ_LINEAR or dmax <= tol * (1.0 + max(abs(a0), abs(a1), abs(a2), abs(a3), abs(a4))))
+    ):
+        return True, state_t(t, a0, a1, a2, a3, a4, s, k[K_VC] * h), F, region, delta, bd, sp, cp
+    for _it in range(max_iter - 1):
+        code, a, t, mesh, fin, _dm = newton_iter_t(pv, a, t, mesh, ce, se, kk, w_b, hc, k, dynamic, tol, False, True)
+        if code == NEWTON_DONE:
+            s1 = state_t(t, a[0], a[1], a[2], a[3], a[4], s, k[K_VC] * h)
             return True, s1, fin[0], fin[1], fin[2], fin[3], fin[4], fin[5]
         if code == NEWTON_BAD:
             break
