@@ -653,9 +653,10 @@ def corrects_kink(k, reg0, region):
 
 @kernel
 def corrected_fixed_step(s, s1, reg0, ce0, se0, w_a, ce, se, kk, w_b, hc, k, dynamic):
-    """``newmark.kink_correct_t`` for the fixed-step drivers (:func:`stats_segment` and the SIMD lanes'
-    ``batch_kernels._locate_lane``). Not inlined, as :func:`located_fixed_step`: one compiled copy for both (so they
-    agree bit for bit), and the one-system loop keeps its registers. Units as there (b0, natural time)."""
+    """``newmark.kink_correct_t`` for the one-system loop (:func:`stats_segment`). Not inlined, as
+    :func:`located_fixed_step`, so that the loop keeps its registers; the SIMD lanes (``batch_kernels._locate_lane``)
+    inline ``kink_correct_t`` itself, with the same arithmetic (bit for bit, tested). Units as there (b0, natural
+    time)."""
     return kink_correct_t(s, s1, reg0, ce0, se0, w_a, ce, se, kk, w_b, hc, k, dynamic)
 
 

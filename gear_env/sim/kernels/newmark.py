@@ -384,6 +384,12 @@ def crossing_side_t(reg0, region1):
     return reg0
 
 
+KINK_THETA_TOL = 1e-6
+"""The Newton iteration of :func:`kink_correct_t` for the crossing theta (fraction of the step) stops at an update
+below this: the theta after it is good to ~1e-12, and the correction's integrals of the gap, which vanishes at the
+crossing, change by ~(error of theta)^2. It takes 2-3 iterations (a tolerance of 1e-12 took 3-20: rounding noise)."""
+
+
 @kernel_inline
 def kink_correct_t(s, s1, reg0, ce0, se0, w_a, ce, se, kk, w_b, hc, k, dynamic):
     """The Newmark step from s (contact region ``reg0``) to s1 that stepped over one contact edge, corrected for the
@@ -433,7 +439,7 @@ def kink_correct_t(s, s1, reg0, ce0, se0, w_a, ce, se, kk, w_b, hc, k, dynamic):
         nt = th - p / dp if dp != 0.0 else -1.0
         if not lo < nt < hi:
             nt = 0.5 * (lo + hi)
-        done = abs(nt - th) <= 1e-12
+        done = abs(nt - th) <= KINK_THETA_TOL
         th = nt
         if done:
             break
