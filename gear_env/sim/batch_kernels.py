@@ -99,8 +99,10 @@ def _first_pass(B, TB, nl, m, jj, dphi, dynamic, tol):
     ``m`` = excitation row of TB.
 
     Stores are unconditional on purpose: ``x = new if ok else x`` becomes a masked store, which
-    is microcoded and slow on AMD Zen.
+    is microcoded and slow on AMD Zen. Returns the number of lanes whose iteration did not finish (an
+    integer sum, which keeps the loop vectorised), so that the scalar scan for them can be skipped.
     """
+    nredo = 0
     for e in range(nl):
         k = _lane_k(B, e)
         w0 = B[Q_W0, e]
@@ -160,18 +162,24 @@ def _first_pass(B, TB, nl, m, jj, dphi, dynamic, tol):
         B[O_RESUME, e] = 1.0 if more else 0.0
         B[O_DMAX, e] = dmax
         B[O_SPLIT, e] = 0.0
+        nredo += 0 if ok else 1
+    return nredo
 
 
 @kernel_inline
 def _check_pass(B, nl):
     """Elapsed time and the divergence check of every lane after a step (vectorised loop):
     O_BAD = 1 where the state is non-finite or |q|_1 + |v|_1 > DIVERGENCE_LIMIT
-    (``kernels._diverged_t``)."""
+    (``kernels._diverged_t``). Returns the number of such lanes."""
+    nbad = 0
     for e in range(nl):
         B[Q_EL, e] += B[O_H, e]
         m = abs(B[0, e]) + abs(B[1, e]) + abs(B[2, e]) + abs(B[3, e]) + abs(B[4, e])
         m += abs(B[5, e]) + abs(B[6, e]) + abs(B[7, e]) + abs(B[8, e]) + abs(B[9, e])
-        B[O_BAD, e] = 0.0 if m <= K.DIVERGENCE_LIMIT else 1.0
+        good = m <= K.DIVERGENCE_LIMIT
+        B[O_BAD, e] = 0.0 if good else 1.0
+        nbad += 0 if good else 1
+    return nbad
 
 
 @kernel_inline
@@ -303,23 +311,11 @@ def _locate_lane(B, TB, el, m, j, n_steps, dphi, c, dynamic, max_iter, tol):
     again from its pre-step state (R_OLD rows), split at the crossing (``kernels.located_step_t``, as
     ``kernels.stats_segment`` does), and store the result like :func:`_redo_lane` (a located step counts as split);
     the R_OLD accelerations become those at the start of the step's last part, for its Poincare sample. A step in
-    which no crossing is found keeps its unlocated result. A lane that corrects kinks (``kernels.corrects_kink``) has
-    its result corrected instead (``kernels.kink_correct_t``, as ``kernels.corrected_fixed_step``; not a split
-    step). Compiled apart from the vectorised loops (rare)."""
+    which no crossing is found keeps its unlocated result (a lane that corrects kinks, ``kernels.corrects_kink``, takes
+    :func:`_correct_lane` instead). Compiled apart from the vectorised loops (rare)."""
     k = _lane_k(B, el)
     s = _lane_s(B, el, R_OLD)
     ja = j % n_steps
-    if K.corrects_kink(k, np.int64(B[Q_REGPREV, el]), np.int64(B[O_REG, el])):
-        wa = B[Q_WA, el]
-        wb = B[O_WB, el]
-        # kink_correct_t inlined here (the one-system loop calls it through corrected_fixed_step: same arithmetic,
-        # ~40 ns less per correction than the call with its tuples)
-        s1, F, region, delta, bd, sp, cp = K.kink_correct_t(
-            s, _lane_s(B, el), np.int64(B[Q_REGPREV, el]), TB[ja, 0, el], TB[ja, 1, el], wa, TB[m, 0, el],
-            TB[m, 1, el], TB[m, 2, el], wb, K.step_coeffs(2.0 * dphi / (wa + wb), k), k, dynamic,
-        )  # fmt: skip
-        _store_lane(B, el, s, s1, F, region, delta, bd, sp, cp, 0, dynamic)
-        return
     s1, F, region, delta, bd, sp, cp, h, nloc, sa, hl = K.located_fixed_step(
         s, _lane_s(B, el), B[O_F, el], np.int64(B[O_REG, el]), B[O_DELTA, el], B[O_BD, el], B[O_SP, el],
         B[O_CP, el], np.int64(B[Q_REGPREV, el]), B[Q_DPREV, el], B[Q_BDPREV, el], dphi * j, dphi, B[Q_WA, el],
@@ -333,6 +329,25 @@ def _locate_lane(B, TB, el, m, j, n_steps, dphi, c, dynamic, max_iter, tol):
     B[O_HL, el] = hl
     for i in range(K.NDOF):
         B[R_OLD + K.NSTATE + i, el] = sa[K.NSTATE + i]
+
+
+@kernel_inline
+def _correct_lane(B, TB, el, m, ja, dphi, dynamic):
+    """Step j of lane el (``ja`` = j mod steps per period, ``m`` = its end's excitation row) changed the contact
+    region across one edge and the lane corrects kinks (``kernels.corrects_kink``): correct its result
+    (``kernels.kink_correct_t``; the one-system loop calls it through ``kernels.corrected_fixed_step``, the same
+    arithmetic) and store it like :func:`_redo_lane` (not a split step). Inlined in the loop: ~0.4 lanes per step
+    take it under random set-points, and a call (with the buffers and tuples it loads) cost about as much as the
+    correction itself (an interleaved A/B of the kernel, docs/BENCHMARKS.md)."""
+    k = _lane_k(B, el)
+    s = _lane_s(B, el, R_OLD)
+    wa = B[Q_WA, el]
+    wb = B[O_WB, el]
+    s1, F, region, delta, bd, sp, cp = K.kink_correct_t(
+        s, _lane_s(B, el), np.int64(B[Q_REGPREV, el]), TB[ja, 0, el], TB[ja, 1, el], wa, TB[m, 0, el],
+        TB[m, 1, el], TB[m, 2, el], wb, K.step_coeffs(2.0 * dphi / (wa + wb), k), k, dynamic,
+    )  # fmt: skip
+    _store_lane(B, el, s, s1, F, region, delta, bd, sp, cp, 0, dynamic)
 
 
 @kernel_inline
@@ -449,6 +464,7 @@ def _integrate(
         for j in range(j0, total):
             m = (j + 1) % n_steps
             el0 = 0
+            nredo = nl  # lanes to scan for a scalar redo (all of them after a split step)
             if resume:  # lane pos[P_EL]'s step was taken by _split_lane
                 resume = False
                 el0 = pos[P_EL]
@@ -460,9 +476,10 @@ def _integrate(
                     _retire(B, el0, e, r_old, X, A, stats, elapsed, B[Q_EL, el0] + B[O_H, el0], C[e], dynamic)
                 el0 += 1
             else:
-                _first_pass(B, TB, nl, m, j + 1.0, dphi, dynamic, tol)
-            # lanes whose first Newton iteration did not finish: the scalar step from the start
-            for el in range(el0, nl):
+                nredo = _first_pass(B, TB, nl, m, j + 1.0, dphi, dynamic, tol)
+            # lanes whose first Newton iteration did not finish: the scalar step from the start (the scans of
+            # lanes below run only where a vectorised count says one is needed: each costs ~16 branches per step)
+            for el in range(el0, nl if nredo != 0 else 0):
                 if B[Q_LIVE, el] == 0.0 or B[O_DONE, el] != 0.0:
                     continue
                 e = e0 + el
@@ -477,21 +494,29 @@ def _integrate(
                     status[e] = st
                     done[e] = j // n_steps
                     _retire(B, el, e, r_old, X, A, stats, elapsed, B[Q_EL, el] + B[O_H, el], C[e], dynamic)
-            # lanes that locate contact changes and changed the contact region in this step (not a split step)
+            # lanes that locate contact changes or correct their kinks and changed the contact region in this step
+            # (not a split step): the correction inline (most contact changes finish in the first pass, so this
+            # runs for ~0.4 lanes per step under random set-points), location in a call
+            nchg = 0
             for el in range(nl if locating else 0):
+                nchg += 1 if B[O_REG, el] != B[Q_REGPREV, el] else 0
+            for el in range(nl if nchg != 0 else 0):
                 if (
                     B[R_K + K.K_LOC, el] != 0.0
                     and B[Q_LIVE, el] != 0.0
                     and B[O_REG, el] != B[Q_REGPREV, el]
                     and B[O_HL, el] != 0.0
                 ):
-                    _locate_lane(B, TB, el, m, j, n_steps, dphi, C[e0 + el], dynamic, max_iter, tol)
-            _check_pass(B, nl)
-            for el in range(nl):
-                if B[O_BAD, el] != 0.0 and B[Q_LIVE, el] != 0.0:
-                    status[e0 + el] = K.DIVERGED
-                    done[e0 + el] = j // n_steps
-                    _retire(B, el, e0 + el, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
+                    if K.corrects_kink(_lane_k(B, el), np.int64(B[Q_REGPREV, el]), np.int64(B[O_REG, el])):
+                        _correct_lane(B, TB, el, m, j % n_steps, dphi, dynamic)
+                    else:
+                        _locate_lane(B, TB, el, m, j, n_steps, dphi, C[e0 + el], dynamic, max_iter, tol)
+            if _check_pass(B, nl) != 0:
+                for el in range(nl):
+                    if B[O_BAD, el] != 0.0 and B[Q_LIVE, el] != 0.0:
+                        status[e0 + el] = K.DIVERGED
+                        done[e0 + el] = j // n_steps
+                        _retire(B, el, e0 + el, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
             _stats_pass(B, nl)
             if m == 0:
                 p = (j + 1) // n_steps - 1

@@ -654,7 +654,7 @@ def corrects_kink(k, reg0, region):
 @kernel
 def corrected_fixed_step(s, s1, reg0, ce0, se0, w_a, ce, se, kk, w_b, hc, k, dynamic):
     """``newmark.kink_correct_t`` for the one-system loop (:func:`stats_segment`). Not inlined, as
-    :func:`located_fixed_step`, so that the loop keeps its registers; the SIMD lanes (``batch_kernels._locate_lane``)
+    :func:`located_fixed_step`, so that the loop keeps its registers; the SIMD lanes (``batch_kernels._correct_lane``)
     inline ``kink_correct_t`` itself, with the same arithmetic (bit for bit, tested). Units as there (b0, natural
     time)."""
     return kink_correct_t(s, s1, reg0, ce0, se0, w_a, ce, se, kk, w_b, hc, k, dynamic)
