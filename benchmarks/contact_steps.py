@@ -18,7 +18,9 @@ steps of ``"fox-goodwin-vc"`` (``GearParams.velocity_correction``, the Fox-Goodw
 count under that scheme (from its own contact loss at 64 steps: what ``steps_per_period="auto"`` does on those ids),
 at 64 steps of that scheme with the contact changes located inside the steps (the environments'
 ``locate_contacts=True``), with the contact changes located per mesh period, and at 64 steps of that scheme with the
-kinks of the contact changes corrected (``correct_kinks=True``).
+kinks of the contact changes corrected (``correct_kinks=True``), and so at the count of the rule's classes for corrected
+steps (``contact_steps(..., corrected=True)``: 48 or 64, from the separation at 64 steps; what
+``steps_per_period="auto"`` with ``correct_kinks=True`` takes).
 The rule's cost is its mean count over the orbits (the environments' cost is measured by ``env_tol.py``).
 """
 
@@ -57,22 +59,26 @@ def errors(params, cases) -> tuple[np.ndarray, ...]:
 
     fg = params.replace(newmark_beta=1.0 / 12.0)
     vc = fg.replace(velocity_correction=True)
-    e64, er, ns, evc, erv, nsv = [], [], [], [], [], []
+    e64, er, ns, evc, erv, nsv, sepv = [], [], [], [], [], [], []
     for model, w, x0, ref in cases:
         for p, e_fixed, e_rule, counts in ((fg, e64, er, ns), (vc, evc, erv, nsv)):
             iv = GearSimulator(p, model, 64, w, x0).advance(10)
+            if p is vc:
+                sepv.append(iv.separation_fraction)
             e_fixed.append(float(np.max(np.abs(iv.poincare[:, :10] - ref))))
             n = contact_steps(iv.separation_fraction)
             counts.append(n)
             iv_n = iv if n == 64 else GearSimulator(p, model, n, w, x0).advance(10)
             e_rule.append(float(np.max(np.abs(iv_n.poincare[:, :10] - ref))))
-    eloc, nloc, ecor = [], [], []
-    for model, w, x0, ref in cases:
+    eloc, nloc, ecor, ecr, ncr = [], [], [], [], []
+    for (model, w, x0, ref), sep in zip(cases, sepv):
         e, n = located(vc, model, w, x0, ref)
         eloc.append(e)
         nloc.append(n)
         ecor.append(located(vc, model, w, x0, ref, corrected=True)[0])
-    return tuple(np.array(v) for v in (e64, er, ns, evc, erv, nsv, eloc, nloc, ecor))
+        ncr.append(contact_steps(sep, corrected=True))
+        ecr.append(ecor[-1] if ncr[-1] == 64 else located(vc, model, w, x0, ref, ncr[-1], corrected=True)[0])
+    return tuple(np.array(v) for v in (e64, er, ns, evc, erv, nsv, eloc, nloc, ecor, ecr, ncr))
 
 
 def located(
@@ -92,13 +98,13 @@ def located(
     return float(np.max(np.abs(run.poincare[:, :10] - ref))), float(run.stats[K.ST_SPLITS]) / periods
 
 
-def line(name: str, e64, er, ns, evc, erv, nsv, eloc, nloc, ecor) -> str:
+def line(name: str, e64, er, ns, evc, erv, nsv, eloc, nloc, ecor, ecr, ncr) -> str:
     def s(e: np.ndarray) -> str:
         return f"{np.percentile(e, 95):.1e} / {e.max():.1e} | {(e > 1e-3).sum()}"
 
     return (
         f"| {name} | {len(e64)} | {s(e64)} | {s(er)} | {ns.mean():.1f} | {s(evc)} | {s(erv)} | {nsv.mean():.1f} "
-        f"| {s(eloc)} | {nloc.mean():.2f} | {s(ecor)} |"
+        f"| {s(eloc)} | {nloc.mean():.2f} | {s(ecor)} | {s(ecr)} | {ncr.mean():.1f} |"
     )
 
 
@@ -113,9 +119,10 @@ def main(argv: list[str] | None = None) -> int:
         "| orbit set | orbits | 64 steps: p95 / max [b0] | > 1e-3 | rule: p95 / max [b0] | > 1e-3 | rule: mean steps "
         "| fox-goodwin-vc, 64 steps: p95 / max [b0] | > 1e-3 | fox-goodwin-vc, rule: p95 / max [b0] | > 1e-3 "
         "| its mean steps | fox-goodwin-vc, 64 located: p95 / max [b0] | > 1e-3 | contact changes per period "
-        "| fox-goodwin-vc, 64 kinks corrected: p95 / max [b0] | > 1e-3 |"
+        "| fox-goodwin-vc, 64 kinks corrected: p95 / max [b0] | > 1e-3 "
+        "| fox-goodwin-vc, kinks corrected, corrected rule: p95 / max [b0] | > 1e-3 | its mean steps |"
     )
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     base = GearParams()
     for name in args.sets:
         if name in ("tuning", "fresh"):
@@ -124,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
             print(line(f"Table 1 pair, {name}", *errors(base, orbits(base, omegas))), flush=True)
             continue
         omegas = np.round(np.arange(0.307, 2.4, 0.04), 6)
-        total = [np.zeros(0)] * 9
+        total = [np.zeros(0)] * 11
         for load, te in FAMILY:
             p = PlantFamily.plant(base, {"load": load, "e_m1": te}, 1.0)
             res = errors(p, orbits(p, omegas))
