@@ -25,6 +25,12 @@ ids keep 64).
 episode, and prints the CPU ratios and the auto run's mean steps per mesh period (the counts chosen for steps 2 to the
 last of each episode).
 
+``--task-vector N`` drives ``GearSpeedVectorEnv(N)`` with ``--policy`` (batched, deterministic) on the task, its
+Fox-Goodwin id, and that id with ``locate_contacts=True`` and with ``correct_kinks=True``: ``--rounds`` interleaved
+rounds of 150 vector steps, the CPU time of ``step`` only; prints the env-steps/s ratios to the task.
+
+    python benchmarks/env_tol.py --seeds 1 --steps 2 --settings "Fox-Goodwin-vc 64 steps" --task-vector 16 --rounds 6
+
 ``--json FILE`` writes the run's record (benchmarks/bench_record.py; benchmarks/make_tables.py reads it).
 """
 
@@ -144,6 +150,54 @@ def task_cost(env_id: str, spec: str, episodes: int, rec) -> None:
           + " / ".join(f"{np.mean(c == k):.2f}" for k in (48, 64, 80)) + ")")  # fmt: skip
 
 
+def task_vector_cost(env_id: str, spec: str, n: int, rounds: int, steps: int, rec) -> None:
+    """Env-steps/s of ``GearSpeedVectorEnv(n)`` driven by policy ``spec`` (deterministic, batched) on ``env_id``, on its
+    Fox-Goodwin id, with ``locate_contacts=True`` and with ``correct_kinks=True``: ``rounds`` interleaved rounds of
+    ``steps`` vector steps each, CPU time of ``step`` only (the policy's time is left out), episodes auto-reset."""
+    import os
+
+    from agents.registry import resolve_policy
+    from gear_env.envs.env_config import task_config
+    from gear_env.envs.tasks import FOX_GOODWIN_TASKS
+    from gear_env.envs.vector_env import GearSpeedVectorEnv
+
+    fg_id = {old: new for new, old in FOX_GOODWIN_TASKS.items()}[env_id]
+    runs = {
+        env_id: (env_id, {}),
+        fg_id: (fg_id, {}),
+        f"{fg_id}, contacts located": (fg_id, {"locate_contacts": True}),
+        f"{fg_id}, kinks corrected": (fg_id, {"correct_kinks": True}),
+    }
+    state = {}
+    for name, (tid, kw) in runs.items():
+        venv = GearSpeedVectorEnv(n, task_config(tid, kw))
+        pol = resolve_policy(spec, task_config(tid, kw), env_id=tid)
+        obs, _ = venv.reset(seed=[800000 + i for i in range(n)])
+        for _ in range(3):  # warm up
+            obs = venv.step(pol.predict(obs, deterministic=True)[0])[0]
+        state[name] = [venv, pol, obs]
+    cpu: dict[str, list[float]] = {name: [] for name in runs}
+    for r in range(rounds):
+        for name in runs if r % 2 == 0 else list(runs)[::-1]:
+            venv, pol, obs = state[name]
+            t = 0.0
+            for _ in range(steps):
+                act = pol.predict(obs, deterministic=True)[0]
+                t0 = time.process_time()
+                obs = venv.step(act)[0]
+                t += time.process_time() - t0
+            state[name][2] = obs
+            cpu[name].append(t)
+    base = np.array(cpu[env_id])
+    print(f"\n{spec} driving GearSpeedVectorEnv({n}), {rounds} interleaved rounds of {steps} steps (load average "
+          f"{os.getloadavg()[0]:.1f}), env-steps/s against {env_id}: median [min, max]")  # fmt: skip
+    for name in runs:
+        ratio = base / np.array(cpu[name])
+        print(f"  {name}: {np.median(ratio):.2f} [{ratio.min():.2f}, {ratio.max():.2f}]")
+        rec.add(f"{spec} driving GearSpeedVectorEnv({n}) on {name} vs {env_id}: env-steps/s", "ratio",
+                [float(np.median(ratio))], note=f"range {ratio.min():.2f}-{ratio.max():.2f}")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     import gear_env  # noqa: F401
 
@@ -158,15 +212,19 @@ def main(argv: list[str] | None = None) -> int:
                     help="also: N episodes of --policy on the task and its Fox-Goodwin id, interleaved "
                          "(CPU ratio)")  # fmt: skip
     ap.add_argument("--policy", default="pretrained", help="policy spec of --task-cost (default pretrained)")
+    ap.add_argument("--task-vector", type=int, default=0, metavar="N",
+                    help="also: GearSpeedVectorEnv(N) driven by --policy on the task and its Fox-Goodwin id "
+                         "(env-steps/s ratio; --rounds rounds of 150 steps)")  # fmt: skip
     ap.add_argument("--json", metavar="FILE", help="also write a JSON record (benchmarks/make_tables.py reads it)")
     ap.add_argument("--settings", nargs="+", metavar="NAME", choices=list(SETTINGS), default=list(SETTINGS),
                     help="only these settings (the 64-step default always runs: ratios are against it)")  # fmt: skip
     args = ap.parse_args(argv)
     from gear_env.envs.tasks import FOX_GOODWIN_TASKS
 
-    if args.task_cost and args.env not in FOX_GOODWIN_TASKS.values():
+    if (args.task_cost or args.task_vector) and args.env not in FOX_GOODWIN_TASKS.values():
         ap.error(
-            f"--task-cost compares a task with its Fox-Goodwin id: --env one of {sorted(FOX_GOODWIN_TASKS.values())}"
+            "--task-cost and --task-vector compare a task with its Fox-Goodwin id: --env one of "
+            f"{sorted(FOX_GOODWIN_TASKS.values())}"
         )
     settings = {k: v for k, v in SETTINGS.items() if k in args.settings or k == "64 steps (default)"}
     from bench_record import Record, check_json_target
@@ -223,6 +281,8 @@ def main(argv: list[str] | None = None) -> int:
                     "ratio", [float(np.median(ratio))], note=f"range {ratio.min():.2f}-{ratio.max():.2f}")  # fmt: skip
     if args.task_cost:
         task_cost(args.env, args.policy, args.task_cost, rec)
+    if args.task_vector:
+        task_vector_cost(args.env, args.policy, args.task_vector, args.rounds, 150, rec)
     if args.json:
         rec.write(args.json)
     return 0
