@@ -337,8 +337,8 @@ def _correct_lane(B, TB, el, m, ja, dphi, dynamic):
     region across one edge and the lane corrects kinks (``kernels.corrects_kink``): correct its result
     (``kernels.kink_correct_t``; the one-system loop calls it through ``kernels.corrected_fixed_step``, the same
     arithmetic) and store it like :func:`_redo_lane` (not a split step). Inlined in the loop: ~0.4 lanes per step
-    take it under random set-points, and a call (with the buffers and tuples it loads) cost about as much as the
-    correction itself (an interleaved A/B of the kernel, docs/BENCHMARKS.md)."""
+    take it under random set-points, and the call it went through before (with the buffers and tuples it reloads)
+    cost about as much as the correction itself (the kernel timed with the correction removed, docs/BENCHMARKS.md)."""
     k = _lane_k(B, el)
     s = _lane_s(B, el, R_OLD)
     wa = B[Q_WA, el]
