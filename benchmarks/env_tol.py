@@ -106,6 +106,21 @@ def vector_rates(env_id: str, n: int, rounds: int, seconds: float) -> dict[str, 
     return out
 
 
+def task_runs(env_id: str, auto: bool) -> dict[str, tuple[str, dict]]:
+    """The runs that --task-cost and --task-vector compare, name -> (id, settings): ``env_id``, its Fox-Goodwin id (main
+    checked that it has one), with ``steps_per_period="auto"`` if ``auto``, with ``locate_contacts`` and with
+    ``correct_kinks``."""
+    from gear_env.envs.tasks import FOX_GOODWIN_TASKS
+
+    fg_id = {old: new for new, old in FOX_GOODWIN_TASKS.items()}[env_id]
+    runs = {env_id: (env_id, {}), fg_id: (fg_id, {})}
+    if auto:
+        runs[f"{fg_id}, auto steps"] = (fg_id, {"steps_per_period": "auto"})
+    runs[f"{fg_id}, contacts located"] = (fg_id, {"locate_contacts": True})
+    runs[f"{fg_id}, kinks corrected"] = (fg_id, {"correct_kinks": True})
+    return runs
+
+
 def task_cost(env_id: str, spec: str, episodes: int, rec) -> None:
     """CPU of ``episodes`` episodes of policy ``spec`` on ``env_id``, on its Fox-Goodwin id, on that id with
     ``steps_per_period="auto"``, with ``locate_contacts=True`` and with ``correct_kinks=True``, interleaved per
@@ -114,17 +129,9 @@ def task_cost(env_id: str, spec: str, episodes: int, rec) -> None:
 
     from agents.registry import resolve_policy
     from gear_env.envs.env_config import task_config
-    from gear_env.envs.tasks import FOX_GOODWIN_TASKS
     from gear_env.evaluation.episodes import run_episode
 
-    fg_id = {old: new for new, old in FOX_GOODWIN_TASKS.items()}[env_id]  # main checked it
-    runs = {
-        env_id: (env_id, {}),
-        fg_id: (fg_id, {}),
-        f"{fg_id}, auto steps": (fg_id, {"steps_per_period": "auto"}),
-        f"{fg_id}, contacts located": (fg_id, {"locate_contacts": True}),
-        f"{fg_id}, kinks corrected": (fg_id, {"correct_kinks": True}),
-    }
+    runs = task_runs(env_id, auto=True)
     cpu = dict.fromkeys(runs, 0.0)
     counts: list[int] = []
     for tid, kw in runs.values():  # warm up (maps, compilation)
@@ -158,16 +165,9 @@ def task_vector_cost(env_id: str, spec: str, n: int, rounds: int, steps: int, re
 
     from agents.registry import resolve_policy
     from gear_env.envs.env_config import task_config
-    from gear_env.envs.tasks import FOX_GOODWIN_TASKS
     from gear_env.envs.vector_env import GearSpeedVectorEnv
 
-    fg_id = {old: new for new, old in FOX_GOODWIN_TASKS.items()}[env_id]
-    runs = {
-        env_id: (env_id, {}),
-        fg_id: (fg_id, {}),
-        f"{fg_id}, contacts located": (fg_id, {"locate_contacts": True}),
-        f"{fg_id}, kinks corrected": (fg_id, {"correct_kinks": True}),
-    }
+    runs = task_runs(env_id, auto=False)
     state = {}
     for name, (tid, kw) in runs.items():
         venv = GearSpeedVectorEnv(n, task_config(tid, kw))

@@ -230,7 +230,6 @@ class GearSpeedCore:
         self.n_tol = np.full(n, TOL_N_START, np.int64)  # with `tol`: each row's coarse step count N
         # steps_per_period="auto": each row's steps per mesh period for its next interval (contact_steps of its last)
         self.auto = cfg.steps_per_period == "auto"
-        self.corrected = bool(cfg.correct_kinks)  # "auto" with corrected kinks: contact_steps(..., corrected=True)
         self.n_steps = np.full(n, AUTO_FIRST_STEPS if self.auto else cfg.steps_per_period, np.int64)
         # each row's stable Newmark step (natural time; inf for the paper's beta 1/4): steps_per_period is raised
         # to it per row and interval (Fox-Goodwin at low omega), so a row's steps depend only on its own omega
@@ -329,13 +328,13 @@ class GearSpeedCore:
                 sep = float(st[0, K.ST_SEP_TIME] + st[0, K.ST_BACK_TIME]) / max(float(st[0, K.ST_TIME]), 1e-300)
                 p = pc[0, -k:, : K.NSTATE]
                 periodic = k > 1 and float(np.abs(p[1:] - p[:-1]).max()) <= AUTO_PERIODIC_DEFECT
-                self.n_steps[r] = contact_steps(sep, periodic, self.corrected)
+                self.n_steps[r] = contact_steps(sep, periodic, self.config.correct_kinks)
             return
         good = rows[ok]
         sep = (st[ok, K.ST_SEP_TIME] + st[ok, K.ST_BACK_TIME]) / np.maximum(st[ok, K.ST_TIME], 1e-300)
         p = pc[ok][:, -k:, : K.NSTATE]
         periodic = (np.abs(p[:, 1:] - p[:, :-1]).max(axis=(1, 2), initial=0.0) <= AUTO_PERIODIC_DEFECT) & (k > 1)
-        n = contact_steps(sep, periodic, self.corrected)
+        n = contact_steps(sep, periodic, self.config.correct_kinks)
         self.n_steps[good] = np.where(self.beta[good] == FOX_GOODWIN_BETA, n, AUTO_OTHER_STEPS)
 
     def _set_floor(self, r: int | slice) -> None:
