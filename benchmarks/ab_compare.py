@@ -15,6 +15,13 @@ same one core. The workloads are those of the three benchmarks, called from thei
   the code of an issue's date:
   ``--ref ad98ae5 --a-env GearSpeedDemand-v0 --b-env GearSpeedDemand-v1 --b-cfg '{"steps_per_period": 72}'``).
 
+``--policy SPEC`` replaces the random set-points of the env-* workloads by a policy's (``pretrained``, a script
+name, a policy file: ``agents.registry``): its actions are recorded once on side B's environment (the start each
+workload makes, ``bench_env.record_policy_actions``) and replayed on both sides, so both time the same set-points,
+those an agent chooses (quiet speeds, few contact changes), whatever their numerical differences:
+``--ref ad98ae5 --a-env GearSpeedDemand-v0 --b-env GearSpeedDemand-v1 --b-cfg '{"correct_kinks": true}'
+--policy pretrained``.
+
 Rates are per CPU second of the child (robust against other jobs on the machine). Each child
 warms up first (its compile is not timed; the numba cache, one folder per source hash, is kept
 between runs in $NUMBA_CACHE_DIR, default a folder in the temp dir). Prints, per workload, the
@@ -60,6 +67,7 @@ secs = {seconds!r}
 only = {only!r}
 env_id = {env_id!r}
 cfg = json.loads({cfg!r})
+acts = {{n: np.load(p, allow_pickle=False) for n, p in {actions!r}.items()}}
 
 def run(name, warm):
     t = 0.05 if warm else secs
@@ -72,9 +80,9 @@ def run(name, warm):
     if name == "scalar-8":
         return E.bench_kernel(8, t, lanes=False)
     if name == "env-single":
-        return E.bench_single(t, env_id, **cfg)
+        return E.bench_single(t, env_id, acts.get(name), **cfg)
     if name.startswith("env-vec-"):
-        return E.bench_vector(int(name[8:]), t, env_id, **cfg)
+        return E.bench_vector(int(name[8:]), t, env_id, acts.get(name), **cfg)
     raise ValueError(name)
 
 for n in only:
@@ -83,11 +91,47 @@ print(json.dumps({{n: run(n, False) for n in only}}))
 """
 
 
+_RECORD = r"""
+import json, sys
+import numpy as np
+sys.path.insert(0, {bench!r})
+import bench_env as E
+cfg = json.loads({cfg!r})
+for name, path in {paths!r}.items():
+    n = 0 if name == "env-single" else int(name[8:])
+    acts = E.record_policy_actions({spec!r}, {env_id!r}, n, 4096 if n == 0 else 512, **cfg)
+    np.save(path, acts)
+    print(name, acts.shape, "mean |a|", float(np.abs(acts).mean()), flush=True)
+"""
+
+
+def _record(tree: Path, spec: str, env_id: str, cfg: str, names: list[str], tmp: Path, cwd: str) -> dict[str, str]:
+    """Record policy ``spec``'s actions on ``env_id`` (settings ``cfg``) for the env-* workloads ``names``, in a child
+    on ``tree`` (side B); returns workload -> .npy path."""
+    paths = {n: str(tmp / f"actions-{n}.npy") for n in names}
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tree), str(ROOT)]))  # ROOT: the agents package
+    code = _RECORD.format(bench=str(HERE), cfg=cfg, paths=paths, spec=spec, env_id=env_id)
+    out = subprocess.run([sys.executable, "-c", code], env=env, cwd=cwd, capture_output=True, text=True, check=False)
+    if out.returncode != 0:
+        raise SystemExit(f"recording the actions of policy {spec!r} on {env_id} failed:\n{out.stderr[-3000:]}")
+    print("actions of policy", spec, "recorded on side B:", "; ".join(out.stdout.strip().splitlines()))
+    return paths
+
+
 def _child(
-    tree: Path, only: list[str], seconds: float, cpu: int, cwd: str, env_id: str | None = None, cfg: str = "{}"
+    tree: Path,
+    only: list[str],
+    seconds: float,
+    cpu: int,
+    cwd: str,
+    env_id: str | None = None,
+    cfg: str = "{}",
+    actions: dict[str, str] | None = None,
 ) -> dict[str, float]:
     env = dict(os.environ, PYTHONPATH=str(tree))
-    code = _CHILD.format(bench=str(HERE), seconds=seconds, only=list(only), env_id=env_id, cfg=cfg)
+    code = _CHILD.format(
+        bench=str(HERE), seconds=seconds, only=list(only), env_id=env_id, cfg=cfg, actions=dict(actions or {})
+    )
     cmd = [sys.executable, "-c", code]
     if hasattr(os, "sched_setaffinity"):
         cmd = ["taskset", "-c", str(cpu), *cmd]
@@ -109,7 +153,11 @@ def main(argv: list[str] | None = None) -> int:
         who = f"env-* workloads of side {side.upper()}"
         ap.add_argument(f"--{side}-env", metavar="ID", help=f"{who}: this registered id")
         ap.add_argument(f"--{side}-cfg", metavar="JSON", default="{}", help=f"{who}: these settings (a JSON object)")
+    ap.add_argument("--policy", metavar="SPEC", help="env-* workloads: replay the actions of this policy (recorded on "
+                    "side B's environment, which needs --b-env) instead of random ones")  # fmt: skip
     args = ap.parse_args(argv)
+    if args.policy and not args.b_env:
+        ap.error("--policy needs --b-env (the registered id whose policy actions are recorded)")
     for side in ("a", "b"):
         try:
             if not isinstance(json.loads(getattr(args, f"{side}_cfg")), dict):
@@ -127,6 +175,12 @@ def main(argv: list[str] | None = None) -> int:
         )
         subprocess.run(["tar", "-x", "-C", str(tree_a)], input=arch.stdout, check=True)
         trees = {"A": tree_a, "B": Path(args.tree)}
+        env_names = [n for n in args.only if n.startswith("env-")]
+        actions = (
+            _record(trees["B"], args.policy, args.b_env, args.b_cfg, env_names, Path(tmp), str(cwd))
+            if args.policy and env_names
+            else {}
+        )
         print(f"A = {args.ref} ({tree_a}), B = {args.tree}; {args.rounds} rounds, {args.seconds} s each")
         for side in ("a", "b"):
             what = getattr(args, f"{side}_env") or "GearSpeedEnv()"
@@ -144,6 +198,7 @@ def main(argv: list[str] | None = None) -> int:
                     str(cwd),
                     getattr(args, f"{side.lower()}_env"),
                     getattr(args, f"{side.lower()}_cfg"),
+                    actions,
                 )  # fmt: skip
                 for side in order
             }

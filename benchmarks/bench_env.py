@@ -40,9 +40,10 @@ def _timed(step_fn, seconds: float) -> tuple[int, float]:
     return n, c - c0
 
 
-def bench_single(seconds: float, env_id: str | None = None, **cfg) -> float:
+def bench_single(seconds: float, env_id: str | None = None, actions: np.ndarray | None = None, **cfg) -> float:
     """Env steps per second of one GearSpeedEnv (random actions, auto-reset); with ``env_id``, of
-    ``gym.make(env_id, **cfg)`` (its wrappers included)."""
+    ``gym.make(env_id, **cfg)`` (its wrappers included); with ``actions`` (T, 1), those replayed in turn instead
+    of random ones (:func:`record_policy_actions`)."""
     if env_id is None:
         from gear_env.envs.env import GearSpeedEnv
 
@@ -54,12 +55,11 @@ def bench_single(seconds: float, env_id: str | None = None, **cfg) -> float:
 
         env = gym.make(env_id, **cfg)
     env.reset(seed=0)
-    rng = np.random.default_rng(0)
-    acts = rng.uniform(-1, 1, (4096, 1)).astype(np.float32)
+    acts = np.random.default_rng(0).uniform(-1, 1, (4096, 1)).astype(np.float32) if actions is None else actions
     k = [0]
 
     def step():
-        _, _, te, tr, _ = env.step(acts[k[0] % 4096])
+        _, _, te, tr, _ = env.step(acts[k[0] % len(acts)])
         k[0] += 1
         if te or tr:
             env.reset()
@@ -70,9 +70,12 @@ def bench_single(seconds: float, env_id: str | None = None, **cfg) -> float:
     return n / dt
 
 
-def bench_vector(num_envs: int, seconds: float, env_id: str | None = None, **cfg) -> float:
+def bench_vector(
+    num_envs: int, seconds: float, env_id: str | None = None, actions: np.ndarray | None = None, **cfg
+) -> float:
     """Environment steps per second (num_envs x vector steps) of GearSpeedVectorEnv; with ``env_id``,
-    of ``gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point", **cfg)``."""
+    of ``gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point", **cfg)``; with ``actions``
+    (T, num_envs, 1), those replayed in turn instead of random ones (:func:`record_policy_actions`)."""
     if env_id is None:
         from gear_env.envs.vector_env import GearSpeedVectorEnv
 
@@ -84,18 +87,51 @@ def bench_vector(num_envs: int, seconds: float, env_id: str | None = None, **cfg
 
         venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **cfg)
     venv.reset(seed=0)
-    rng = np.random.default_rng(0)
-    acts = rng.uniform(-1, 1, (64, num_envs, 1)).astype(np.float32)
+    acts = np.random.default_rng(0).uniform(-1, 1, (64, num_envs, 1)).astype(np.float32) if actions is None else actions
     k = [0]
 
     def step():
-        venv.step(acts[k[0] % 64])
+        venv.step(acts[k[0] % len(acts)])
         k[0] += 1
 
     for _ in range(3):
         step()
     n, dt = _timed(step, seconds)
     return n * num_envs / dt
+
+
+def record_policy_actions(spec: str, env_id: str, num_envs: int, steps: int, **cfg) -> np.ndarray:
+    """The actions that policy ``spec`` (``agents.registry.resolve_policy``: ``pretrained``, a script name, a policy
+    file; deterministic) takes on ``env_id`` with settings ``cfg`` over ``steps`` steps from the start that
+    :func:`bench_single` (``num_envs`` 0: one env, actions (steps, 1)) or :func:`bench_vector` (``num_envs`` sub-envs,
+    actions (steps, num_envs, 1)) makes (``reset(seed=0)``, auto-reset). Replayed there, they time the environment
+    under the set-points a policy chooses (quiet speeds, few contact changes) rather than random ones; the replay is
+    open loop, so another tree's environment sees the same set-points whatever its small numerical differences."""
+    import gymnasium as gym
+
+    import gear_env  # noqa: F401  (registers the ids)
+    from agents.registry import resolve_policy
+    from gear_env.envs.env_config import task_config
+
+    pol = resolve_policy(spec, task_config(env_id, cfg), env_id=env_id)
+    out = []
+    if num_envs == 0:
+        env = gym.make(env_id, **cfg)
+        obs, _ = env.reset(seed=0)
+        for _ in range(steps):
+            act = np.asarray(pol.predict(obs, deterministic=True)[0], np.float32).reshape(1)
+            out.append(act)
+            obs, _, te, tr, _ = env.step(act)
+            if te or tr:
+                obs, _ = env.reset()
+        return np.array(out, np.float32)
+    venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **cfg)
+    obs, _ = venv.reset(seed=0)
+    for _ in range(steps):
+        act = np.asarray(pol.predict(obs, deterministic=True)[0], np.float32).reshape(num_envs, 1)
+        out.append(act)
+        obs = venv.step(act)[0]
+    return np.array(out, np.float32)
 
 
 def bench_kernel(num_envs: int, seconds: float, lanes: bool, ramp: float = 0.0) -> float:

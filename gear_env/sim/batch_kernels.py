@@ -141,7 +141,7 @@ def _first_pass(B, TB, nl, m, jj, dphi, dynamic, tol):
         B[R_OLD + 17, e] = g[2]
         B[R_OLD + 18, e] = g[3]
         B[R_OLD + 19, e] = g[4]
-        s1 = K.state_t(t, a[0], a[1], a[2], a[3], a[4], s, k[K.K_VC] * hc[0])  # Newmark's v (newmark.state_t)
+        s1 = K.state_vc_t(t, a[0], a[1], a[2], a[3], a[4], s, k[K.K_VC] * hc[0])  # Newmark's v (newmark.state_t)
         for i in range(K.NSTATE):
             B[R_S + i, e] = s1[i]
         for i in range(K.NDOF):

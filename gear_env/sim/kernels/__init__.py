@@ -209,6 +209,7 @@ from .newmark import (
     split_at_t,
     split_step_t,
     state_t,
+    state_vc_t,
     step_coeffs,
     store_t,
 )
