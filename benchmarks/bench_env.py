@@ -114,17 +114,28 @@ def record_policy_actions(spec: str, env_id: str, num_envs: int, steps: int, **c
     from gear_env.envs.env_config import task_config
 
     pol = resolve_policy(spec, task_config(env_id, cfg), env_id=env_id)
+    told = hasattr(pol, "observe_episode")  # a privileged baseline: told each episode's scenario
     out = []
     if num_envs == 0:
         env = gym.make(env_id, **cfg)
         obs, _ = env.reset(seed=0)
+        if told:
+            pol.observe_episode(env.unwrapped.episode)
         for _ in range(steps):
             act = np.asarray(pol.predict(obs, deterministic=True)[0], np.float32).reshape(1)
             out.append(act)
             obs, _, te, tr, _ = env.step(act)
             if te or tr:
                 obs, _ = env.reset()
+                if told:
+                    pol.observe_episode(env.unwrapped.episode)
         return np.array(out, np.float32)
+    if told:
+        raise ValueError(
+            f"policy {spec!r} is told each episode's scenario, which a vector env's rows do not give it: record it "
+            "with num_envs=0 (env-single), or use a policy that acts on observations (pretrained, a policy file, a "
+            "sensor script such as sensor-servo)"
+        )
     venv = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **cfg)
     obs, _ = venv.reset(seed=0)
     for _ in range(steps):
