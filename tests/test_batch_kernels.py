@@ -324,3 +324,36 @@ def test_hysteresis_dwell_example_runs():
 
     assert 0.0 < width(long_) < width(short)
     assert "| dynamic, 2.410 |" in out.stdout
+
+
+@pytest.mark.parametrize("model", ["constant", "dynamic"])
+@pytest.mark.parametrize("max_iter", [NEWTON_MAX_ITER, 1])
+def test_lanes_kernel_takes_a_step_count_per_system(model, max_iter):
+    # steps_per_period="auto" in the vector env: rows of different step counts in one call, each bit for bit what it
+    # gives alone (the scalar kernel, row by row); both blocks mixed (16 + 3 rows), lanes that finish early, split
+    # steps (max_iter=1), a NaN row and an exploding one, and kink-correcting rows (K_LOC) among plain ones
+    from gear_env.sim.params import C_LOC, CONTACTS_CORRECTED
+
+    n = 19
+    NS = np.where(np.arange(n) % 3 == 0, 64, 48)
+    NS[16:] = [32, 48, 32]
+    code = model_code(model)
+    X0, A0, C = _systems(n, model, seed=5)
+    C[1::2, C_LOC] = CONTACTS_CORRECTED
+    X0[5, 0] = np.nan
+    X0[7, 5:] = 4e5
+    W0 = 0.4 + 0.13 * (np.arange(n) % 12)
+    W1 = W0 + np.where(np.arange(n) % 2 == 0, 0.03, -0.02)
+    xa, aa, xb, ab = X0.copy(), A0.copy(), X0.copy(), A0.copy()
+    for _ in range(2):
+        rb = _run(BK.integrate_stats_lanes, code, xb, ab, W0, W1, C, 5, NS, max_iter)
+        for i in range(n):
+            ra = _run(
+                K.integrate_stats_batch, np.full(1, code, np.int64), xa[i : i + 1], aa[i : i + 1], W0[i : i + 1],
+                W1[i : i + 1], C[i : i + 1], 5, int(NS[i]), max_iter,
+            )  # fmt: skip
+            for key in ra:
+                np.testing.assert_array_equal(ra[key][0], rb[key][i], err_msg=f"{model}: row {i} ({NS[i]}): {key}")
+    assert rb["status"][5] == K.NEWTON_FAILED and rb["status"][7] != K.OK
+    assert (rb["status"] == K.OK).sum() == n - 2
+    assert (rb["stats"][:, K.ST_STEPS][rb["status"] == K.OK] == (5 * NS)[rb["status"] == K.OK]).all()

@@ -177,8 +177,9 @@ def test_contact_steps_classes_and_bad_steps_refused():
 
 
 def test_auto_steps_vector_env_with_mixed_counts_matches_the_single_envs():
-    """Sub-environments at different speeds take different step counts in one vector step (one batch per
-    count); each row's count depends only on its own past, so every row equals a single env bit for bit."""
+    """Sub-environments at different speeds take different step counts in one vector step (one SIMD call, each lane
+    at its own count); each row's count depends only on its own past, so every row equals a single env bit for
+    bit."""
     n = 6
     kw = dict(SHORT, max_steps=5, action_mode="target", initial_omega=None)
     kw["steps_per_period"] = "auto"

@@ -293,6 +293,8 @@ class GearSpeedCore:
         n0 = int(ns[0])
         if len(rows) == 1 or bool((ns == n0).all()):
             out = self._integrate_n(rows, w0, w1, periods, n0)
+        elif len(rows) >= LANES_MIN:  # one SIMD call, each row at its own count (batch_kernels.integrate_stats_lanes)
+            out = self._integrate_n(rows, w0, w1, periods, ns.astype(np.int64))
         else:  # one batch per step count (at most three)
             m = len(rows)
             out = (np.zeros((m, periods, K.N_PC)), np.zeros((m, K.N_STATS)), np.zeros(m, bool), np.zeros(m))
@@ -304,8 +306,9 @@ class GearSpeedCore:
         self._next_steps(rows, out[0], out[1], out[2])
         return out
 
-    def _integrate_n(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int, nsp: int):
-        """:meth:`_integrate` with ``nsp`` steps per mesh period for every row of ``rows``."""
+    def _integrate_n(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int, nsp: int | np.ndarray):
+        """:meth:`_integrate` with ``nsp`` steps per mesh period for every row of ``rows`` (an int64 array: one count
+        per row, for at least ``LANES_MIN`` rows, which the SIMD lanes take in one call)."""
         if self.conditional:
             return self._integrate_stable(rows, w0, w1, periods, nsp)
         return self._integrate_fixed(rows, w0, w1, periods, nsp)
@@ -348,7 +351,7 @@ class GearSpeedCore:
         )
         self.conditional = bool((self.w_floor > 0).any())
 
-    def _integrate_stable(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int, nsp: int):
+    def _integrate_stable(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int, nsp: int | np.ndarray):
         """:meth:`_integrate` under a conditionally stable Newmark beta (``params.newmark_beta`` < 1/4): every
         row keeps ``nsp`` steps; a row whose interval reaches below its ``w_floor / nsp`` (where that beta is
         unstable at this step count) takes, for this interval, the beta closest to its own that is stable there
@@ -368,7 +371,9 @@ class GearSpeedCore:
         mr = rows[moved]
         w_low = np.minimum(np.asarray(w0, float)[moved], np.asarray(w1, float)[moved])
         vc = self.C[mr, C_VC].copy()  # the velocity correction (its own, lower limit) is left for the interval
-        self.C[mr, C_BETA] = stable_betas(self.beta[mr], self.w_plain[mr], w_low, nsp)
+        self.C[mr, C_BETA] = stable_betas(
+            self.beta[mr], self.w_plain[mr], w_low, nsp[moved] if isinstance(nsp, np.ndarray) else nsp
+        )
         self.C[mr, C_VC] = 0.0
         try:
             return self._integrate_fixed(rows, w0, w1, periods, nsp)
@@ -376,7 +381,7 @@ class GearSpeedCore:
             self.C[mr, C_BETA] = self.beta[mr]
             self.C[mr, C_VC] = vc
 
-    def _integrate_fixed(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int, nsp: int):
+    def _integrate_fixed(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int, nsp: int | np.ndarray):
         """:meth:`_integrate` with ``nsp`` fixed steps per mesh period for every row."""
         m = len(rows)
         if self.single and m == 1:  # fast path of the single env: no fancy indexing, reused buffers
@@ -391,7 +396,7 @@ class GearSpeedCore:
             # above): the same kernel, the same numbers
             status, _done, el = K.integrate_stats_lazy(
                 x, a, 0.0, float(w0[0]), float(w1[0]), periods, nsp, c, self.code, pc[0], st[0], NEWTON_MAX_ITER,
-                NEWTON_TOL, True, _excitation_table(nsp, c),
+                NEWTON_TOL, True, _excitation_table(int(nsp), c),
             )  # fmt: skip
             good = status == K.OK and math.isfinite(float(st[0].sum()))
             if good:

@@ -57,7 +57,10 @@ O_F, O_REG, O_DELTA, O_BD, O_SP, O_CP, O_H, O_WB, O_DONE, O_SPLIT, O_BAD, O_HL, 
     Q_FMAX, Q_FMIN, Q_UMAX, Q_UMIN, Q_DMAX, Q_DMIN, Q_BDMAX, Q_BDMIN, Q_SPMAX, Q_SPMIN,
     Q_FPREV, Q_TRPREV, Q_REGPREV, Q_EL, Q_LIVE, Q_W0, Q_WW, Q_WA, Q_DPREV, Q_BDPREV,
 ) = range(O_DMAX + 1, O_DMAX + 32)  # fmt: skip
-N_ROWS = Q_BDPREV + 1
+# per-lane step counts: steps per mesh period, its phase step, the excitation row of the step's end (the lane's own
+# (j + 1) mod steps) and the excitation there (copied from TB before the first pass, so that it reads rows)
+Q_NS, Q_DPHI, Q_M, Q_CE, Q_SE, Q_KK = range(Q_BDPREV + 1, Q_BDPREV + 7)
+N_ROWS = Q_KK + 1
 
 
 @kernel_inline
@@ -91,12 +94,12 @@ def _lane_g(B, e, r=R_G):
 
 
 @kernel_inline
-def _first_pass(B, TB, nl, m, jj, dphi, dynamic, tol):
+def _first_pass(B, nl, jj, dynamic, tol):
     """One Newmark step of every lane with a single Newton iteration (vectorised loop).
 
     Every lane's state and guess are overwritten with the result (the pre-step ones are copied to
-    the R_OLD rows); O_DONE = 1 where the iteration finished the step. ``jj`` = step index + 1,
-    ``m`` = excitation row of TB.
+    the R_OLD rows); O_DONE = 1 where the iteration finished the step. ``jj`` = step index + 1; each lane's
+    phase step and its step's excitation are in its rows Q_DPHI and Q_CE, Q_SE, Q_KK.
 
     Stores are unconditional on purpose: ``x = new if ok else x`` becomes a masked store, which
     is microcoded and slow on AMD Zen. Returns the number of lanes whose iteration did not finish (an
@@ -109,12 +112,12 @@ def _first_pass(B, TB, nl, m, jj, dphi, dynamic, tol):
         ww = B[Q_WW, e]
         wa = B[Q_WA, e]
         wb = w0 if ww == 0.0 else math.sqrt(w0 * w0 + ww * jj)
-        hc = K.step_coeffs(2.0 * dphi / (wa + wb), k)
+        hc = K.step_coeffs(2.0 * B[Q_DPHI, e] / (wa + wb), k)
         s = _lane_s(B, e)
         g = _lane_g(B, e)
-        ce = TB[m, 0, e]
-        se = TB[m, 1, e]
-        kk = TB[m, 2, e]
+        ce = B[Q_CE, e]
+        se = B[Q_SE, e]
+        kk = B[Q_KK, e]
         pv, t, mesh = K.newton_start_t(s, g, ce, se, wb, hc, k, dynamic)
         code, a, t, mesh, fin, dmax = K.newton_iter_t(pv, g, t, mesh, ce, se, kk, wb, hc, k, dynamic, tol, True, False)
         ok = code == K.NEWTON_DONE and k[K.K_MU] == 0.0  # steps with friction: redone by the scalar path
@@ -376,13 +379,15 @@ def _retire(B, el, e, r, X, A, stats, elapsed, el_time, c, dynamic):
 
 
 @kernel
-def _load_block(B, TB, nl, e0, X, A, W0, W1, total, n_steps, C, dynamic, status, work):
+def _load_block(B, TB, nl, e0, X, A, W0, W1, n_periods, NS, C, dynamic, status, work):
     """Fill the block buffer with systems e0 .. e0 + nl - 1 (those beyond the last system are
-    padding: a copy of the last system, never live)."""
+    padding: a copy of the last system, never live), system e at NS[e] steps per mesh period."""
     n = X.shape[0]
     for el in range(nl):
         e = min(e0 + el, n - 1)
         c = C[e]
+        n_steps = NS[e]
+        total = n_periods * n_steps
         k = K.step_consts(c)
         for i in range(N_K):
             B[R_K + i, el] = k[i]
@@ -403,6 +408,9 @@ def _load_block(B, TB, nl, e0, X, A, W0, W1, total, n_steps, C, dynamic, status,
             B[r, el] = 0.0
         B[Q_W0, el] = W0[e]
         B[Q_WW, el] = (W1[e] * W1[e] - W0[e] * W0[e]) / total
+        B[Q_NS, el] = float(n_steps)
+        B[Q_DPHI, el] = K.TWO_PI / n_steps
+        B[Q_M, el] = 0.0
         B[Q_WA, el] = W0[e]
         B[Q_FPREV, el] = F0
         B[Q_REGPREV, el] = float(reg0)
@@ -426,9 +434,14 @@ the call that continues comes in."""
 
 @kernel_inline
 def _integrate(
-    X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
+    X, A, W0, W1, n_periods, NS, C, dynamic, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
 ):
     """The loop of :func:`integrate_stats_lanes`, up to a lane whose step Newton does not finish.
+
+    ``NS`` (n,) int64: each system's steps per mesh period. A block whose lanes differ in it ("mixed") runs as many
+    block steps as its largest count needs; each lane takes its own steps (its phase step, excitation rows,
+    Poincare samples and end), a lane that has finished is retired and then stepped on at its final omega, its
+    results untouched, like a padding lane.
 
     ``done`` (n,) periods completed (filled with n_periods by the caller). ``pos[P_J] < 0`` starts
     the batch. At a lane step that needs splitting the block (buffers B and TB) is saved into
@@ -440,16 +453,15 @@ def _integrate(
     compile-time constants (see LANES).
     """
     n = X.shape[0]
-    total = n_periods * n_steps
-    dphi = K.TWO_PI / n_steps
+    n_max = STB.shape[0]  # the largest of NS
     B = np.empty((N_ROWS, LANES))
-    TB = np.empty((n_steps, 3, LANES))
+    TB = np.empty((n_max, 3, LANES))
     work = np.zeros(K.WORK_SIZE)
     r_old = K.runtime_int(R_OLD)  # not literals: one compiled copy of _retire
     r_s = K.runtime_int(R_S)
     resume = pos[P_J] >= 0
     if resume:  # continue after the split step of lane pos[P_EL]
-        _copy_block(SB, STB, B, TB, n_steps)
+        _copy_block(SB, STB, B, TB, n_max)
     for e0 in range(pos[P_E0] if resume else 0, n, LANES):
         nl = min(LANES, n - e0)
         nl = (nl + PAD - 1) // PAD * PAD
@@ -457,12 +469,19 @@ def _integrate(
         if resume:
             j0 = pos[P_J]
         else:
-            _load_block(B, TB, nl, e0, X, A, W0, W1, total, n_steps, C, dynamic, status, work)
+            _load_block(B, TB, nl, e0, X, A, W0, W1, n_periods, NS, C, dynamic, status, work)
         locating = False  # any lane of the block locates contact changes (K_LOC)
+        ns0 = B[Q_NS, 0]
+        mixed = False  # lanes of different step counts
+        ns_max = ns0
         for el in range(nl):
             locating = locating or B[R_K + K.K_LOC, el] != 0.0
+            mixed = mixed or B[Q_NS, el] != ns0
+            ns_max = max(ns_max, B[Q_NS, el])
+        n_steps = np.int64(ns0)  # the block's count where it is not mixed
+        total = n_periods * np.int64(ns_max)
         for j in range(j0, total):
-            m = (j + 1) % n_steps
+            m = (j + 1) % n_steps  # (not mixed; mixed blocks read each lane's Q_M)
             el0 = 0
             nredo = nl  # lanes to scan for a scalar redo (all of them after a split step)
             if resume:  # lane pos[P_EL]'s step was taken by _split_lane
@@ -472,27 +491,43 @@ def _integrate(
                 if st != K.OK:
                     e = e0 + el0
                     status[e] = st
-                    done[e] = j // n_steps
+                    done[e] = j // np.int64(B[Q_NS, el0])
                     _retire(B, el0, e, r_old, X, A, stats, elapsed, B[Q_EL, el0] + B[O_H, el0], C[e], dynamic)
                 el0 += 1
             else:
-                nredo = _first_pass(B, TB, nl, m, j + 1.0, dphi, dynamic, tol)
+                # each lane's excitation row of the step's end, and the excitation there
+                if mixed:
+                    for el in range(nl):
+                        mm = B[Q_M, el] + 1.0
+                        mm = 0.0 if mm == B[Q_NS, el] else mm
+                        B[Q_M, el] = mm
+                        mi = np.int64(mm)
+                        B[Q_CE, el] = TB[mi, 0, el]
+                        B[Q_SE, el] = TB[mi, 1, el]
+                        B[Q_KK, el] = TB[mi, 2, el]
+                else:
+                    for el in range(nl):
+                        B[Q_M, el] = float(m)
+                        B[Q_CE, el] = TB[m, 0, el]
+                        B[Q_SE, el] = TB[m, 1, el]
+                        B[Q_KK, el] = TB[m, 2, el]
+                nredo = _first_pass(B, nl, j + 1.0, dynamic, tol)
             # lanes whose first Newton iteration did not finish: the scalar step from the start (the scans of
             # lanes below run only where a vectorised count says one is needed: each costs ~16 branches per step)
             for el in range(el0, nl if nredo != 0 else 0):
                 if B[Q_LIVE, el] == 0.0 or B[O_DONE, el] != 0.0:
                     continue
                 e = e0 + el
-                st = _redo_lane(B, TB, el, m, j, dphi, C[e], dynamic, max_iter, tol)
+                st = _redo_lane(B, TB, el, np.int64(B[Q_M, el]), j, B[Q_DPHI, el], C[e], dynamic, max_iter, tol)
                 if st == K.SPLIT_PENDING:
-                    _copy_block(B, TB, SB, STB, n_steps)
+                    _copy_block(B, TB, SB, STB, n_max)
                     pos[P_E0] = e0
                     pos[P_J] = j
                     pos[P_EL] = el
                     return K.SPLIT_PENDING
                 if st != K.OK:
                     status[e] = st
-                    done[e] = j // n_steps
+                    done[e] = j // np.int64(B[Q_NS, el])
                     _retire(B, el, e, r_old, X, A, stats, elapsed, B[Q_EL, el] + B[O_H, el], C[e], dynamic)
             # lanes that locate contact changes or correct their kinks and changed the contact region in this step
             # (not a split step): the correction inline (most contact changes finish in the first pass, so this
@@ -507,22 +542,24 @@ def _integrate(
                     and B[O_REG, el] != B[Q_REGPREV, el]
                     and B[O_HL, el] != 0.0
                 ):
+                    ns_l = np.int64(B[Q_NS, el])
+                    m_l = np.int64(B[Q_M, el])
                     if K.corrects_kink(_lane_k(B, el), np.int64(B[Q_REGPREV, el]), np.int64(B[O_REG, el])):
-                        _correct_lane(B, TB, el, m, j % n_steps, dphi, dynamic)
+                        _correct_lane(B, TB, el, m_l, j % ns_l, B[Q_DPHI, el], dynamic)
                     else:
-                        _locate_lane(B, TB, el, m, j, n_steps, dphi, C[e0 + el], dynamic, max_iter, tol)
+                        _locate_lane(B, TB, el, m_l, j, ns_l, B[Q_DPHI, el], C[e0 + el], dynamic, max_iter, tol)
             if _check_pass(B, nl) != 0:
                 for el in range(nl):
                     if B[O_BAD, el] != 0.0 and B[Q_LIVE, el] != 0.0:
                         status[e0 + el] = K.DIVERGED
-                        done[e0 + el] = j // n_steps
+                        done[e0 + el] = j // np.int64(B[Q_NS, el])
                         _retire(B, el, e0 + el, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
             _stats_pass(B, nl)
-            if m == 0:
-                p = (j + 1) // n_steps - 1
+            if mixed or m == 0:
                 for el in range(nl):
-                    if B[Q_LIVE, el] == 0.0:
+                    if B[Q_LIVE, el] == 0.0 or B[Q_M, el] != 0.0:
                         continue
+                    p = (j + 1) // np.int64(B[Q_NS, el]) - 1
                     e = e0 + el
                     # the velocity the forces felt (newmark.output_t; over the step's last part after a located
                     # contact change); Newmark's own after a split step (O_HL 0)
@@ -535,6 +572,12 @@ def _integrate(
                     poincare[e, p, K.PC_BD] = B[O_BD, el]
                     poincare[e, p, K.PC_PSI] = K.psi_t(B[O_SP, el], B[O_CP, el], C[e], dynamic)
                     poincare[e, p, K.PC_FORCE] = B[O_F, el]
+            if mixed and (j + 1) % n_periods == 0:  # lanes at their last step: retired, then held at their omega
+                for el in range(nl):
+                    if B[Q_LIVE, el] != 0.0 and j + 1 == n_periods * np.int64(B[Q_NS, el]):
+                        _retire(B, el, e0 + el, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
+                        B[Q_W0, el] = B[Q_WA, el]
+                        B[Q_WW, el] = 0.0
         for el in range(nl):
             if B[Q_LIVE, el] != 0.0:
                 _retire(B, el, e0 + el, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
@@ -576,19 +619,17 @@ def _finish_stats(B, e, stats, c, dynamic):
 
 @kernel
 def _lanes_constant(
-    X, A, W0, W1, n_periods, n_steps, C, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
+    X, A, W0, W1, n_periods, NS, C, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
 ):
     return _integrate(
-        X, A, W0, W1, n_periods, n_steps, C, 0, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
+        X, A, W0, W1, n_periods, NS, C, 0, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
     )
 
 
 @kernel
-def _lanes_dynamic(
-    X, A, W0, W1, n_periods, n_steps, C, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
-):
+def _lanes_dynamic(X, A, W0, W1, n_periods, NS, C, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos):
     return _integrate(
-        X, A, W0, W1, n_periods, n_steps, C, 1, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
+        X, A, W0, W1, n_periods, NS, C, 1, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos
     )
 
 
@@ -597,7 +638,10 @@ def integrate_stats_lanes(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare
     """Advance a batch of independent systems by n_periods each, SIMD across the batch.
 
     Same arguments and results as ``kernels.integrate_stats_batch`` except that ``dynamic`` is
-    one model code (0 constant, 1 dynamic) for every system. X (n, 10), A (n, 5), W0/W1 (n,)
+    one model code (0 constant, 1 dynamic) for every system and ``n_steps`` (steps per mesh period) may be an
+    integer array (n,): each system then takes its own count, with the numbers it gives alone (a block of 16 lanes
+    costs as many block steps as its largest count needs, where separate calls per count would each cost about a
+    full block). X (n, 10), A (n, 5), W0/W1 (n,)
     omega at the start and end (linear in time), C (n, N_CONSTS) constants per system, poincare
     (n, n_periods, N_PC) (rows of periods a failed system did not reach are left as they were),
     stats (n, N_STATS), status (n,) int64, elapsed (n,) natural time. Every system starts at mesh
@@ -612,13 +656,14 @@ def integrate_stats_lanes(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare
     """
     fn = _lanes_constant if dynamic == 0 else _lanes_dynamic
     C = K.readonly(C)  # one compiled signature whoever calls (see kernels.readonly)
+    NS = np.ascontiguousarray(np.broadcast_to(np.asarray(n_steps, np.int64), (X.shape[0],)))
     done = np.full(X.shape[0], n_periods, np.int64)
     SB = np.empty((N_ROWS, LANES))
-    STB = np.empty((n_steps, 3, LANES))
+    STB = np.empty((int(NS.max(initial=1)), 3, LANES))
     pos = np.full(4, -1, np.int64)
-    args = (X, A, W0, W1, n_periods, n_steps, C, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos)
+    args = (X, A, W0, W1, n_periods, NS, C, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos)
     while fn(*args) == K.SPLIT_PENDING:
         el = int(pos[P_EL])
         c = C[int(pos[P_E0]) + el]
-        pos[P_ST] = _split_lane(SB, el, int(pos[P_J]), K.TWO_PI / n_steps, c, int(dynamic), max_iter, tol)
+        pos[P_ST] = _split_lane(SB, el, int(pos[P_J]), float(SB[Q_DPHI, el]), c, int(dynamic), max_iter, tol)
     return done

@@ -144,7 +144,7 @@ def integrate(
     omega0: Any,
     omega1: Any,
     periods: int,
-    steps_per_period: int,
+    steps_per_period: int | np.ndarray,
     *,
     record: bool = False,
     poincare: np.ndarray | None = None,
@@ -170,7 +170,8 @@ def integrate(
         omega0, omega1: meshing frequency Omega/omega_n at the start and the end (numbers for one
             system, float64 arrays (n,) for a batch).
         periods: mesh periods (>= 1).
-        steps_per_period: Newmark steps per mesh period.
+        steps_per_period: Newmark steps per mesh period; for a batch with ``simd``, also an int64 array (n,), each
+            row at its own count in one call (each row's numbers as it gives alone).
         record: one system only: return the full time series instead of statistics.
         poincare, stats: output arrays to fill (allocated when None); reused buffers save an
             allocation on the environment's hot path. One system: (periods, N_PC) and (N_STATS);
@@ -220,7 +221,7 @@ def integrate(
             return IntervalRun(status, done, el, poincare, stats, None, n_last)
         # the period's excitation table kept between calls (the same numbers: it is a function of the step count
         # and the constants only); a third of the cost of a one-period call
-        tab = _excitation_table(steps_per_period, c)
+        tab = _excitation_table(int(steps_per_period), c)
         status, done, el = K.integrate_stats_lazy(
             x, a, 0.0, omega0, omega1, periods, steps_per_period, c, dynamic, poincare, stats, max_iter, tol, True, tab
         )

@@ -208,9 +208,10 @@ def stability_frequency(params: GearParams | None = None, plain: bool = False) -
 
 
 def stable_betas(
-    beta: np.ndarray | float, w_stab: np.ndarray | float, omega: np.ndarray, steps_per_period: int
+    beta: np.ndarray | float, w_stab: np.ndarray | float, omega: np.ndarray, steps_per_period: int | np.ndarray
 ) -> np.ndarray:
-    """Vectorised :func:`stable_beta` for rows of (beta, :func:`stability_frequency`, omega); the same
+    """Vectorised :func:`stable_beta` for rows of (beta, :func:`stability_frequency`, omega; ``steps_per_period``
+    one count or one per row); the same
     floating-point operations per row whatever the number of rows (so one row's result does not depend on
     the others)."""
     h = (2.0 * math.pi / steps_per_period) / np.asarray(omega, float)
