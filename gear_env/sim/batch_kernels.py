@@ -484,6 +484,7 @@ def _integrate(
             m = (j + 1) % n_steps  # (not mixed; mixed blocks read each lane's Q_M)
             el0 = 0
             nredo = nl  # lanes to scan for a scalar redo (all of them after a split step)
+            n_m0 = nl  # lanes whose step ends a mesh period (all of them to scan after a split step)
             if resume:  # lane pos[P_EL]'s step was taken by _split_lane
                 resume = False
                 el0 = pos[P_EL]
@@ -497,10 +498,12 @@ def _integrate(
             else:
                 # each lane's excitation row of the step's end, and the excitation there
                 if mixed:
+                    n_m0 = 0
                     for el in range(nl):
                         mm = B[Q_M, el] + 1.0
                         mm = 0.0 if mm == B[Q_NS, el] else mm
                         B[Q_M, el] = mm
+                        n_m0 += 1 if mm == 0.0 else 0
                         mi = np.int64(mm)
                         B[Q_CE, el] = TB[mi, 0, el]
                         B[Q_SE, el] = TB[mi, 1, el]
@@ -555,7 +558,7 @@ def _integrate(
                         done[e0 + el] = j // np.int64(B[Q_NS, el])
                         _retire(B, el, e0 + el, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
             _stats_pass(B, nl)
-            if mixed or m == 0:
+            if (mixed and n_m0 != 0) or (not mixed and m == 0):
                 for el in range(nl):
                     if B[Q_LIVE, el] == 0.0 or B[Q_M, el] != 0.0:
                         continue
