@@ -291,24 +291,15 @@ class GearSpeedCore:
             low = np.minimum(np.asarray(w0, float), np.asarray(w1, float)) < self.w_floor[rows] / ns
             ns = np.where(low & (ns < AUTO_OTHER_STEPS), AUTO_OTHER_STEPS, ns)
         n0 = int(ns[0])
-        if len(rows) == 1 or bool((ns == n0).all()):
-            out = self._integrate_n(rows, w0, w1, periods, n0)
-        elif len(rows) >= LANES_MIN:  # one SIMD call, each row at its own count (batch_kernels.integrate_stats_lanes)
-            out = self._integrate_n(rows, w0, w1, periods, ns.astype(np.int64))
-        else:  # one batch per step count (at most three)
-            m = len(rows)
-            out = (np.zeros((m, periods, K.N_PC)), np.zeros((m, K.N_STATS)), np.zeros(m, bool), np.zeros(m))
-            w0, w1 = np.asarray(w0, float), np.asarray(w1, float)
-            for n_ in np.unique(ns):
-                sel = np.flatnonzero(ns == n_)
-                for whole, part in zip(out, self._integrate_n(rows[sel], w0[sel], w1[sel], periods, int(n_))):
-                    whole[sel] = part
+        # rows of different counts: one SIMD call, each row at its own (batch_kernels.integrate_stats_lanes)
+        nsp = n0 if len(rows) == 1 or bool((ns == n0).all()) else ns.astype(np.int64)
+        out = self._integrate_n(rows, w0, w1, periods, nsp)
         self._next_steps(rows, out[0], out[1], out[2])
         return out
 
     def _integrate_n(self, rows: np.ndarray, w0: np.ndarray, w1: np.ndarray, periods: int, nsp: int | np.ndarray):
         """:meth:`_integrate` with ``nsp`` steps per mesh period for every row of ``rows`` (an int64 array: one count
-        per row, for at least ``LANES_MIN`` rows, which the SIMD lanes take in one call)."""
+        per row, which the SIMD lanes take in one call)."""
         if self.conditional:
             return self._integrate_stable(rows, w0, w1, periods, nsp)
         return self._integrate_fixed(rows, w0, w1, periods, nsp)
@@ -408,7 +399,10 @@ class GearSpeedCore:
         W0 = np.ascontiguousarray(w0, float)
         W1 = np.ascontiguousarray(w1, float)
         # SIMD across the rows from LANES_MIN up (same numbers as the scalar batch kernel)
-        run = integrate(X, A, self.C[rows], self.code, W0, W1, periods, nsp, simd=m >= LANES_MIN)
+        # (a count per row: the SIMD lanes whatever the number of rows)
+        run = integrate(
+            X, A, self.C[rows], self.code, W0, W1, periods, nsp, simd=m >= LANES_MIN or isinstance(nsp, np.ndarray)
+        )
         status, elapsed, pc, st = run.status, run.elapsed, run.poincare, run.stats
         # the kernel flags non-finite or exploding states; a non-finite statistic would mean the same
         ok = (status == K.OK) & np.isfinite(st).all(axis=1)

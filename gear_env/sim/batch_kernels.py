@@ -509,6 +509,7 @@ def _integrate(
                         B[Q_SE, el] = TB[mi, 1, el]
                         B[Q_KK, el] = TB[mi, 2, el]
                 else:
+                    n_m0 = nl if m == 0 else 0
                     for el in range(nl):
                         B[Q_M, el] = float(m)
                         B[Q_CE, el] = TB[m, 0, el]
@@ -558,7 +559,7 @@ def _integrate(
                         done[e0 + el] = j // np.int64(B[Q_NS, el])
                         _retire(B, el, e0 + el, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
             _stats_pass(B, nl)
-            if (mixed and n_m0 != 0) or (not mixed and m == 0):
+            if n_m0 != 0:
                 for el in range(nl):
                     if B[Q_LIVE, el] == 0.0 or B[Q_M, el] != 0.0:
                         continue
