@@ -169,8 +169,8 @@ def test_contact_steps_classes_and_bad_steps_refused():
     assert [contact_steps(f, False) for f in (0.1, 0.3, 0.9)] == [48, 64, 64]
     assert contact_steps(np.array([0.1, 0.9, 0.9]), np.array([False, False, True])).tolist() == [48, 64, 80]
     # kinks corrected (correct_kinks): the third class is 64
-    assert [contact_steps(f, corrected=True) for f in (0.0, 0.2, 0.21, 0.9, float("nan"))] == [48, 48, 64, 64, 64]
-    assert contact_steps(np.array([0.1, 0.3, 0.9]), True, corrected=True).tolist() == [48, 64, 64]
+    assert [contact_steps(f, corrected=True) for f in (0.0, 0.2, 0.21, 0.9, float("nan"))] == [32, 32, 64, 64, 64]
+    assert contact_steps(np.array([0.1, 0.3, 0.9]), True, corrected=True).tolist() == [32, 64, 64]
     for bad in ("Auto", 15, 1025, 64.0, True):
         with pytest.raises(ValueError, match=r'steps_per_period must be an integer in \[16, 1024\] or "auto"'):
             task_config("GearSpeed-v2", {"steps_per_period": bad})

@@ -134,7 +134,7 @@ class GearSpeedConfig(TableConfig):
         steps_per_period: Newmark steps per mesh period, in [16, 1024]; default 64 (the env's fast
             preset, same regime boundaries as the simulator's 128; see docs/ENVIRONMENT.md); or ``"auto"``: with
             Fox-Goodwin's beta 48, 64 or 80 per sub-environment and step by its contact loss in the step before
-            (``gear_env.sim.integration.contact_steps``; 48 or 64 with ``correct_kinks``), with any other beta 64.
+            (``gear_env.sim.integration.contact_steps``; 32 or 64 with ``correct_kinks``), with any other beta 64.
         scheme: None (``params.newmark_beta`` and ``velocity_correction`` as given), ``"paper"`` (beta 1/4),
             ``"fox-goodwin"`` (beta 1/12) or ``"fox-goodwin-vc"`` (beta 1/12 with the velocity correction, the
             Fox-Goodwin ids' setting): sets ``params.newmark_beta`` and ``params.velocity_correction``.

@@ -308,10 +308,10 @@ class GearSpeedCore:
         """``steps_per_period="auto"``: each row's steps per mesh period for its next interval, from its contact
         loss (time out of drive-side contact) in the interval just integrated and whether its last Poincare
         samples repeat (period 1 within :data:`AUTO_PERIODIC_DEFECT`): :func:`~gear_env.sim.integration.contact_steps`
-        for Fox-Goodwin's beta (its ``corrected`` classes, 48 or 64, with ``correct_kinks``), else 64. A failed row
+        for Fox-Goodwin's beta (its ``corrected`` classes, 32 or 64, with ``correct_kinks``), else 64. A failed row
         keeps its count. (:meth:`_integrate` raises a count below 64 to 64 for an interval that reaches below the
-        beta's stable omega at that count, at 48 steps about 0.21
-        (0.23 with the velocity correction), so that the row keeps its scheme there as at the tasks' 64 steps.)"""
+        beta's stable omega at that count, at 48 steps about 0.21 (0.23 with the velocity correction), at 32 about
+        0.32 (0.34), so that the row keeps its scheme there as at the tasks' 64 steps.)"""
         k = min(pc.shape[1], AUTO_PERIODIC_SAMPLES)
         if len(rows) == 1:  # plain floats (the single env)
             r = int(rows[0])

@@ -310,7 +310,7 @@ def _max_domega(label: str, v: Any, cfg: Any) -> float:
 def _steps(label: str, v: Any, cfg: Any) -> int | str:
     """An integer in [16, 1024], or "auto": with Fox-Goodwin's beta 48, 64 or 80 steps per mesh period per
     sub-environment by the contact loss of its previous interval (``gear_env.sim.integration.contact_steps``, the
-    rule calibrated for that scheme; 48 or 64 with ``correct_kinks``), with any other beta 64 (the tasks' count)."""
+    rule calibrated for that scheme; 32 or 64 with ``correct_kinks``), with any other beta 64 (the tasks' count)."""
     if isinstance(v, str) and v == "auto":
         return "auto"
     if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 16 <= v <= 1024:
@@ -566,7 +566,7 @@ SETTINGS: tuple[Setting, ...] = (
             "beta at this count, the sub-environment takes the nearest stable beta for that step, "
             '`gear_env.sim.linear.stable_beta`); "auto": with beta 1/12, 48, 64 or 80 per sub-environment and step '
             "by its contact loss (time out of drive-side contact) in the step before (<= 0.2, <= 0.5, more; 80 only "
-            "for period-1 motion; `gear_env.sim.integration.contact_steps`; with `correct_kinks` 48 or 64: the kinks "
+            "for period-1 motion; `gear_env.sim.integration.contact_steps`; with `correct_kinks` 32 or 64: the kinks "
             "that 80 steps bought down are corrected), with any other beta 64"),
     Setting("tol", None, _tol, "None, [1e-8, 0.1]",
             "error per mesh period (b0 units) instead of `steps_per_period`: every mesh period integrated with "

@@ -66,9 +66,10 @@ CONTACT_STEPS = (48, 64, 80)
 ``CONTACT_SEPARATION[0]`` of the time, up to ``CONTACT_SEPARATION[1]``, more."""
 CONTACT_SEPARATION = (0.2, 0.5)
 """Fractions of time out of drive-side contact that bound the classes of :data:`CONTACT_STEPS`."""
-CORRECTED_CONTACT_STEPS = (48, 64, 64)
+CORRECTED_CONTACT_STEPS = (32, 64, 64)
 """Steps per mesh period of :func:`contact_steps` for steps whose contact kinks are corrected (``corrected=True``):
-the classes of :data:`CONTACT_STEPS` with 64 for the third."""
+32 where the teeth keep contact (their kinks corrected, the quiet orbits need fewer steps than plain Fox-Goodwin's
+48), 64 for the other two classes."""
 
 
 def contact_steps(separation: Any, periodic: Any = True, corrected: bool = False) -> Any:
@@ -89,10 +90,11 @@ def contact_steps(separation: Any, periodic: Any = True, corrected: bool = False
     accuracy"). Not calibrated for the paper's beta 1/4.
 
     ``corrected`` True: the count for steps whose contact kinks are corrected (``correct_kinks``, the kernels'
-    ``CONTACTS_CORRECTED``): 48 up to 0.2, else 64 (:data:`CORRECTED_CONTACT_STEPS`). The third class is dropped
+    ``CONTACTS_CORRECTED``): 32 up to 0.2, else 64 (:data:`CORRECTED_CONTACT_STEPS`). The third class is dropped
     because the error it bought down, the kinks inside the steps, is what the correction removes: on 686 period-1
-    orbits (the two Table 1 sets and the family's five pairs) the corrected steps stay within 2.9e-4 b0 at 48 steps
-    for the orbits up to 0.2 and within 8.3e-4 at 64 for the rest (at 48 they reach 1.6e-3, at 56 1.1e-3)."""
+    orbits (the two Table 1 sets and the family's five pairs) the corrected steps stay within 7.1e-4 b0 at 32 steps
+    for the orbits up to 0.2 (p95 4.1e-4 to 5.1e-4 per set; at 40 steps 4.4e-4, at 48 2.9e-4, at 24 1.3e-2 near
+    omega's stability floor) and within 8.3e-4 at 64 for the rest (at 48 they reach 1.6e-3, at 56 1.1e-3)."""
     a, b = CONTACT_SEPARATION
     lo, mid, hi = CORRECTED_CONTACT_STEPS if corrected else CONTACT_STEPS
     if np.ndim(separation) == 0 and np.ndim(periodic) == 0:
