@@ -9,7 +9,8 @@ same one core. The workloads are those of the three benchmarks, called from thei
 * ``sim-short``: ``GearSimulator.advance(1)`` calls/s (constant model, omega 1.2, N 192);
 * ``lanes-64``, ``scalar-8``: the SIMD lanes kernel at 64 systems, the scalar batch kernel at 8
   (the default control step, env-steps/s), as ``bench_batch_kernels.py`` times them;
-* ``env-single``, ``env-vec-4``, ``env-vec-8``, ``env-vec-12``, ``env-vec-16``, ``env-vec-64``: the environments, env-steps/s
+* ``env-single``, ``env-vec-4``, ``env-vec-8``, ``env-vec-12``, ``env-vec-16``, ``env-vec-64``: the environments,
+  env-steps/s
   (``GearSpeedEnv()``'s defaults, or each side's ``--a-env``/``--b-env`` id with ``--a-cfg``/``--b-cfg``
   settings, so that a setting of this tree is timed against another tree's, e.g. a step count against
   the code of an issue's date:

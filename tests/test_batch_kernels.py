@@ -331,12 +331,18 @@ def test_hysteresis_dwell_example_runs():
 def test_lanes_kernel_takes_a_step_count_per_system(model, max_iter):
     # steps_per_period="auto" in the vector env: rows of different step counts in one call, each bit for bit what it
     # gives alone (the scalar kernel, row by row); both blocks mixed (16 + 3 rows), lanes that finish early, split
-    # steps (max_iter=1), a NaN row and an exploding one, and kink-correcting rows (K_LOC) among plain ones
+    # steps (max_iter=1), a NaN row and an exploding one, and kink-correcting rows (K_LOC) among plain ones; the first
+    # block has 6 lanes at 64 steps, which move into 8 columns once the others finish (batch_kernels._compact, then
+    # split steps and the divergence check on moved lanes), the second pattern 10, which do not fit
+    for NS in (np.where(np.arange(19) % 3 == 0, 64, 48), np.where(np.arange(19) % 3 == 0, 48, 64)):
+        NS[16:] = [32, 48, 32]
+        _check_step_counts(model, max_iter, NS)
+
+
+def _check_step_counts(model, max_iter, NS):
     from gear_env.sim.params import C_LOC, CONTACTS_CORRECTED
 
     n = 19
-    NS = np.where(np.arange(n) % 3 == 0, 64, 48)
-    NS[16:] = [32, 48, 32]
     code = model_code(model)
     X0, A0, C = _systems(n, model, seed=5)
     C[1::2, C_LOC] = CONTACTS_CORRECTED

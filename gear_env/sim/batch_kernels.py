@@ -62,9 +62,10 @@ O_F, O_REG, O_DELTA, O_BD, O_SP, O_CP, O_H, O_WB, O_DONE, O_SPLIT, O_BAD, O_HL, 
     Q_FPREV, Q_TRPREV, Q_REGPREV, Q_EL, Q_LIVE, Q_W0, Q_WW, Q_WA, Q_DPREV, Q_BDPREV,
 ) = range(O_DMAX + 1, O_DMAX + 32)  # fmt: skip
 # per-lane step counts: steps per mesh period, its phase step, the excitation row of the step's end (the lane's own
-# (j + 1) mod steps) and the excitation there (copied from TB before the first pass, so that it reads rows)
-Q_NS, Q_DPHI, Q_M, Q_CE, Q_SE, Q_KK = range(Q_BDPREV + 1, Q_BDPREV + 7)
-N_ROWS = Q_KK + 1
+# (j + 1) mod steps) and the excitation there (copied from TB before the first pass, so that it reads rows); Q_SYS: the
+# system the lane steps (a lane's column moves when a mixed block is compacted, see _compact)
+Q_NS, Q_DPHI, Q_M, Q_CE, Q_SE, Q_KK, Q_SYS = range(Q_BDPREV + 1, Q_BDPREV + 8)
+N_ROWS = Q_SYS + 1
 
 
 @kernel_inline
@@ -425,15 +426,45 @@ def _load_block(B, TB, nl, e0, X, A, W0, W1, n_periods, NS, C, dynamic, status, 
             B[i, el] = -np.inf
         for i in (Q_FMIN, Q_UMIN, Q_DMIN, Q_BDMIN, Q_SPMIN):
             B[i, el] = np.inf
+        B[Q_SYS, el] = float(e)
         B[Q_LIVE, el] = 1.0 if e0 + el < n else 0.0
         if e0 + el < n:
             status[e] = K.OK
 
 
-P_E0, P_J, P_EL, P_ST = range(4)
+P_E0, P_J, P_EL, P_ST, P_NL = range(5)
 """Where :func:`_integrate` stopped at SPLIT_PENDING (entries of its ``pos`` argument): first
 system of the block, step, lane; P_ST: the status of that lane's step (:func:`_split_lane`) when
-the call that continues comes in."""
+the call that continues comes in; P_NL: the block's lane count then (fewer after :func:`_compact`)."""
+
+
+@kernel_inline
+def _compact(B, TB, nl, n_steps):
+    """Move the live lanes of a block of ``nl`` lanes into its first PAD columns (over lanes that were retired) when
+    they fit there, and return the block's new lane count (``nl`` when they do not fit).
+
+    For a mixed block whose lanes of smaller counts have finished: its block steps go on only for the lanes of the
+    largest count, and a block of PAD lanes costs about half one of 16 (the lanes of a column are independent, so the
+    numbers do not change). A lane's column carries everything it needs (state, accumulators, its system in Q_SYS,
+    its excitation table in TB)."""
+    live = 0
+    for el in range(nl):
+        live += 1 if B[Q_LIVE, el] != 0.0 else 0
+    if nl <= PAD or live > PAD:
+        return nl
+    dst = 0
+    for src in range(PAD, nl):
+        if B[Q_LIVE, src] == 0.0:
+            continue
+        while B[Q_LIVE, dst] != 0.0:
+            dst += 1
+        for r in range(N_ROWS):
+            B[r, dst] = B[r, src]
+        for r in range(n_steps):
+            for q in range(3):
+                TB[r, q, dst] = TB[r, q, src]
+        B[Q_LIVE, src] = 0.0
+    return PAD
 
 
 @kernel_inline
@@ -472,6 +503,7 @@ def _integrate(
         j0 = 0
         if resume:
             j0 = pos[P_J]
+            nl = pos[P_NL]
         else:
             _load_block(B, TB, nl, e0, X, A, W0, W1, n_periods, NS, C, dynamic, status, work)
         locating = False  # any lane of the block locates contact changes (K_LOC)
@@ -494,7 +526,7 @@ def _integrate(
                 el0 = pos[P_EL]
                 st = pos[P_ST]
                 if st != K.OK:
-                    e = e0 + el0
+                    e = np.int64(B[Q_SYS, el0])
                     status[e] = st
                     done[e] = j // np.int64(B[Q_NS, el0])
                     _retire(B, el0, e, r_old, X, A, stats, elapsed, B[Q_EL, el0] + B[O_H, el0], C[e], dynamic)
@@ -525,13 +557,14 @@ def _integrate(
             for el in range(el0, nl if nredo != 0 else 0):
                 if B[Q_LIVE, el] == 0.0 or B[O_DONE, el] != 0.0:
                     continue
-                e = e0 + el
+                e = np.int64(B[Q_SYS, el])
                 st = _redo_lane(B, TB, el, np.int64(B[Q_M, el]), j, B[Q_DPHI, el], C[e], dynamic, max_iter, tol)
                 if st == K.SPLIT_PENDING:
                     _copy_block(B, TB, SB, STB, n_max)
                     pos[P_E0] = e0
                     pos[P_J] = j
                     pos[P_EL] = el
+                    pos[P_NL] = nl
                     return K.SPLIT_PENDING
                 if st != K.OK:
                     status[e] = st
@@ -555,20 +588,22 @@ def _integrate(
                     if K.corrects_kink(_lane_k(B, el), np.int64(B[Q_REGPREV, el]), np.int64(B[O_REG, el])):
                         _correct_lane(B, TB, el, m_l, j % ns_l, B[Q_DPHI, el], dynamic)
                     else:
-                        _locate_lane(B, TB, el, m_l, j, ns_l, B[Q_DPHI, el], C[e0 + el], dynamic, max_iter, tol)
+                        c_l = C[np.int64(B[Q_SYS, el])]
+                        _locate_lane(B, TB, el, m_l, j, ns_l, B[Q_DPHI, el], c_l, dynamic, max_iter, tol)
             if _check_pass(B, nl) != 0:
                 for el in range(nl):
                     if B[O_BAD, el] != 0.0 and B[Q_LIVE, el] != 0.0:
-                        status[e0 + el] = K.DIVERGED
-                        done[e0 + el] = j // np.int64(B[Q_NS, el])
-                        _retire(B, el, e0 + el, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
+                        e = np.int64(B[Q_SYS, el])
+                        status[e] = K.DIVERGED
+                        done[e] = j // np.int64(B[Q_NS, el])
+                        _retire(B, el, e, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e], dynamic)
             _stats_pass(B, nl)
             if n_m0 != 0:
                 for el in range(nl):
                     if B[Q_LIVE, el] == 0.0 or B[Q_M, el] != 0.0:
                         continue
                     p = (j + 1) // np.int64(B[Q_NS, el]) - 1
-                    e = e0 + el
+                    e = np.int64(B[Q_SYS, el])
                     # the velocity the forces felt (newmark.output_t; over the step's last part after a located
                     # contact change); Newmark's own after a split step (O_HL 0)
                     wh = B[R_K + K.K_VC, el] * B[O_HL, el]
@@ -583,12 +618,15 @@ def _integrate(
             if mixed and (j + 1) % n_periods == 0:  # lanes at their last step: retired, then held at their omega
                 for el in range(nl):
                     if B[Q_LIVE, el] != 0.0 and j + 1 == n_periods * np.int64(B[Q_NS, el]):
-                        _retire(B, el, e0 + el, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
+                        e = np.int64(B[Q_SYS, el])
+                        _retire(B, el, e, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e], dynamic)
                         B[Q_W0, el] = B[Q_WA, el]
                         B[Q_WW, el] = 0.0
+                nl = _compact(B, TB, nl, n_max)
         for el in range(nl):
             if B[Q_LIVE, el] != 0.0:
-                _retire(B, el, e0 + el, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e0 + el], dynamic)
+                e = np.int64(B[Q_SYS, el])
+                _retire(B, el, e, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e], dynamic)
     return K.OK
 
 
@@ -668,10 +706,10 @@ def integrate_stats_lanes(X, A, W0, W1, n_periods, n_steps, C, dynamic, poincare
     done = np.full(X.shape[0], n_periods, np.int64)
     SB = np.empty((N_ROWS, LANES))
     STB = np.empty((int(NS.max(initial=1)), 3, LANES))
-    pos = np.full(4, -1, np.int64)
+    pos = np.full(5, -1, np.int64)
     args = (X, A, W0, W1, n_periods, NS, C, poincare, stats, status, elapsed, max_iter, tol, done, SB, STB, pos)
     while fn(*args) == K.SPLIT_PENDING:
         el = int(pos[P_EL])
-        c = C[int(pos[P_E0]) + el]
+        c = C[int(SB[Q_SYS, el])]
         pos[P_ST] = _split_lane(SB, el, int(pos[P_J]), float(SB[Q_DPHI, el]), c, int(dynamic), max_iter, tol)
     return done
