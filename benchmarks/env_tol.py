@@ -57,6 +57,7 @@ SETTINGS = {
     "Fox-Goodwin auto": {"params": FOX_GOODWIN, "steps_per_period": "auto"},
     "Fox-Goodwin-vc 64 located": {"params": FOX_GOODWIN_VC, "locate_contacts": True},
     "Fox-Goodwin-vc 64 corrected": {"params": FOX_GOODWIN_VC, "correct_kinks": True},
+    "Fox-Goodwin-vc auto corrected": {"params": FOX_GOODWIN_VC, "correct_kinks": True, "steps_per_period": "auto"},
 }
 
 
