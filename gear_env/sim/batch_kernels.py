@@ -516,113 +516,123 @@ def _integrate(
             ns_max = max(ns_max, B[Q_NS, el])
         n_steps = np.int64(ns0)  # the block's count where it is not mixed
         total = n_periods * np.int64(ns_max)
-        for j in range(j0, total):
-            m = (j + 1) % n_steps  # (not mixed; mixed blocks read each lane's Q_M)
-            el0 = 0
-            nredo = nl  # lanes to scan for a scalar redo (all of them after a split step)
-            n_m0 = nl  # lanes whose step ends a mesh period (all of them to scan after a split step)
-            if resume:  # lane pos[P_EL]'s step was taken by _split_lane
-                resume = False
-                el0 = pos[P_EL]
-                st = pos[P_ST]
-                if st != K.OK:
-                    e = np.int64(B[Q_SYS, el0])
-                    status[e] = st
-                    done[e] = j // np.int64(B[Q_NS, el0])
-                    _retire(B, el0, e, r_old, X, A, stats, elapsed, B[Q_EL, el0] + B[O_H, el0], C[e], dynamic)
-                el0 += 1
-            else:
-                # each lane's excitation row of the step's end, and the excitation there
-                if mixed:
-                    n_m0 = 0
-                    for el in range(nl):
-                        mm = B[Q_M, el] + 1.0
-                        mm = 0.0 if mm == B[Q_NS, el] else mm
-                        B[Q_M, el] = mm
-                        n_m0 += 1 if mm == 0.0 else 0
-                        mi = np.int64(mm)
-                        B[Q_CE, el] = TB[mi, 0, el]
-                        B[Q_SE, el] = TB[mi, 1, el]
-                        B[Q_KK, el] = TB[mi, 2, el]
+        j1 = j0
+        while j1 < total:  # at most two parts, so that the block's width is a constant of each loop (_compact)
+            j_next = total
+            for j in range(j1, total):
+                m = (j + 1) % n_steps  # (not mixed; mixed blocks read each lane's Q_M)
+                el0 = 0
+                nredo = nl  # lanes to scan for a scalar redo (all of them after a split step)
+                n_m0 = nl  # lanes whose step ends a mesh period (all of them to scan after a split step)
+                if resume:  # lane pos[P_EL]'s step was taken by _split_lane
+                    resume = False
+                    el0 = pos[P_EL]
+                    st = pos[P_ST]
+                    if st != K.OK:
+                        e = np.int64(B[Q_SYS, el0])
+                        status[e] = st
+                        done[e] = j // np.int64(B[Q_NS, el0])
+                        _retire(B, el0, e, r_old, X, A, stats, elapsed, B[Q_EL, el0] + B[O_H, el0], C[e], dynamic)
+                    el0 += 1
                 else:
-                    n_m0 = nl if m == 0 else 0
-                    for el in range(nl):
-                        B[Q_M, el] = float(m)
-                        B[Q_CE, el] = TB[m, 0, el]
-                        B[Q_SE, el] = TB[m, 1, el]
-                        B[Q_KK, el] = TB[m, 2, el]
-                nredo = _first_pass(B, nl, j + 1.0, dynamic, tol)
-            # lanes whose first Newton iteration did not finish: the scalar step from the start (the scans of
-            # lanes below run only where a vectorised count says one is needed: each costs ~16 branches per step)
-            for el in range(el0, nl if nredo != 0 else 0):
-                if B[Q_LIVE, el] == 0.0 or B[O_DONE, el] != 0.0:
-                    continue
-                e = np.int64(B[Q_SYS, el])
-                st = _redo_lane(B, TB, el, np.int64(B[Q_M, el]), j, B[Q_DPHI, el], C[e], dynamic, max_iter, tol)
-                if st == K.SPLIT_PENDING:
-                    _copy_block(B, TB, SB, STB, n_max)
-                    pos[P_E0] = e0
-                    pos[P_J] = j
-                    pos[P_EL] = el
-                    pos[P_NL] = nl
-                    return K.SPLIT_PENDING
-                if st != K.OK:
-                    status[e] = st
-                    done[e] = j // np.int64(B[Q_NS, el])
-                    _retire(B, el, e, r_old, X, A, stats, elapsed, B[Q_EL, el] + B[O_H, el], C[e], dynamic)
-            # lanes that locate contact changes or correct their kinks and changed the contact region in this step
-            # (not a split step): the correction inline (most contact changes finish in the first pass, so this
-            # runs for ~0.4 lanes per step under random set-points), location in a call
-            nchg = 0
-            for el in range(nl if locating else 0):
-                nchg += 1 if B[O_REG, el] != B[Q_REGPREV, el] else 0
-            for el in range(nl if nchg != 0 else 0):
-                if (
-                    B[R_K + K.K_LOC, el] != 0.0
-                    and B[Q_LIVE, el] != 0.0
-                    and B[O_REG, el] != B[Q_REGPREV, el]
-                    and B[O_HL, el] != 0.0
-                ):
-                    ns_l = np.int64(B[Q_NS, el])
-                    m_l = np.int64(B[Q_M, el])
-                    if K.corrects_kink(_lane_k(B, el), np.int64(B[Q_REGPREV, el]), np.int64(B[O_REG, el])):
-                        _correct_lane(B, TB, el, m_l, j % ns_l, B[Q_DPHI, el], dynamic)
+                    # each lane's excitation row of the step's end, and the excitation there
+                    if mixed:
+                        n_m0 = 0
+                        for el in range(nl):
+                            mm = B[Q_M, el] + 1.0
+                            mm = 0.0 if mm == B[Q_NS, el] else mm
+                            B[Q_M, el] = mm
+                            n_m0 += 1 if mm == 0.0 else 0
+                            mi = np.int64(mm)
+                            B[Q_CE, el] = TB[mi, 0, el]
+                            B[Q_SE, el] = TB[mi, 1, el]
+                            B[Q_KK, el] = TB[mi, 2, el]
                     else:
-                        c_l = C[np.int64(B[Q_SYS, el])]
-                        _locate_lane(B, TB, el, m_l, j, ns_l, B[Q_DPHI, el], c_l, dynamic, max_iter, tol)
-            if _check_pass(B, nl) != 0:
-                for el in range(nl):
-                    if B[O_BAD, el] != 0.0 and B[Q_LIVE, el] != 0.0:
-                        e = np.int64(B[Q_SYS, el])
-                        status[e] = K.DIVERGED
-                        done[e] = j // np.int64(B[Q_NS, el])
-                        _retire(B, el, e, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e], dynamic)
-            _stats_pass(B, nl)
-            if n_m0 != 0:
-                for el in range(nl):
-                    if B[Q_LIVE, el] == 0.0 or B[Q_M, el] != 0.0:
+                        n_m0 = nl if m == 0 else 0
+                        for el in range(nl):
+                            B[Q_M, el] = float(m)
+                            B[Q_CE, el] = TB[m, 0, el]
+                            B[Q_SE, el] = TB[m, 1, el]
+                            B[Q_KK, el] = TB[m, 2, el]
+                    nredo = _first_pass(B, nl, j + 1.0, dynamic, tol)
+                # lanes whose first Newton iteration did not finish: the scalar step from the start (the scans of
+                # lanes below run only where a vectorised count says one is needed: each costs ~16 branches per step)
+                for el in range(el0, nl if nredo != 0 else 0):
+                    if B[Q_LIVE, el] == 0.0 or B[O_DONE, el] != 0.0:
                         continue
-                    p = (j + 1) // np.int64(B[Q_NS, el]) - 1
                     e = np.int64(B[Q_SYS, el])
-                    # the velocity the forces felt (newmark.output_t; over the step's last part after a located
-                    # contact change); Newmark's own after a split step (O_HL 0)
-                    wh = B[R_K + K.K_VC, el] * B[O_HL, el]
-                    for i in range(K.NDOF):
-                        poincare[e, p, i] = B[R_S + i, el]
-                    for i in range(K.NDOF, K.NSTATE):
-                        poincare[e, p, i] = B[R_S + i, el] - wh * (B[R_S + K.NDOF + i, el] - B[R_OLD + K.NDOF + i, el])
-                    poincare[e, p, K.PC_DELTA] = B[O_DELTA, el]
-                    poincare[e, p, K.PC_BD] = B[O_BD, el]
-                    poincare[e, p, K.PC_PSI] = K.psi_t(B[O_SP, el], B[O_CP, el], C[e], dynamic)
-                    poincare[e, p, K.PC_FORCE] = B[O_F, el]
-            if mixed and (j + 1) % n_periods == 0:  # lanes at their last step: retired, then held at their omega
-                for el in range(nl):
-                    if B[Q_LIVE, el] != 0.0 and j + 1 == n_periods * np.int64(B[Q_NS, el]):
+                    st = _redo_lane(B, TB, el, np.int64(B[Q_M, el]), j, B[Q_DPHI, el], C[e], dynamic, max_iter, tol)
+                    if st == K.SPLIT_PENDING:
+                        _copy_block(B, TB, SB, STB, n_max)
+                        pos[P_E0] = e0
+                        pos[P_J] = j
+                        pos[P_EL] = el
+                        pos[P_NL] = nl
+                        return K.SPLIT_PENDING
+                    if st != K.OK:
+                        status[e] = st
+                        done[e] = j // np.int64(B[Q_NS, el])
+                        _retire(B, el, e, r_old, X, A, stats, elapsed, B[Q_EL, el] + B[O_H, el], C[e], dynamic)
+                # lanes that locate contact changes or correct their kinks and changed the contact region in this step
+                # (not a split step): the correction inline (most contact changes finish in the first pass, so this
+                # runs for ~0.4 lanes per step under random set-points), location in a call
+                nchg = 0
+                for el in range(nl if locating else 0):
+                    nchg += 1 if B[O_REG, el] != B[Q_REGPREV, el] else 0
+                for el in range(nl if nchg != 0 else 0):
+                    if (
+                        B[R_K + K.K_LOC, el] != 0.0
+                        and B[Q_LIVE, el] != 0.0
+                        and B[O_REG, el] != B[Q_REGPREV, el]
+                        and B[O_HL, el] != 0.0
+                    ):
+                        ns_l = np.int64(B[Q_NS, el])
+                        m_l = np.int64(B[Q_M, el])
+                        if K.corrects_kink(_lane_k(B, el), np.int64(B[Q_REGPREV, el]), np.int64(B[O_REG, el])):
+                            _correct_lane(B, TB, el, m_l, j % ns_l, B[Q_DPHI, el], dynamic)
+                        else:
+                            c_l = C[np.int64(B[Q_SYS, el])]
+                            _locate_lane(B, TB, el, m_l, j, ns_l, B[Q_DPHI, el], c_l, dynamic, max_iter, tol)
+                if _check_pass(B, nl) != 0:
+                    for el in range(nl):
+                        if B[O_BAD, el] != 0.0 and B[Q_LIVE, el] != 0.0:
+                            e = np.int64(B[Q_SYS, el])
+                            status[e] = K.DIVERGED
+                            done[e] = j // np.int64(B[Q_NS, el])
+                            _retire(B, el, e, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e], dynamic)
+                _stats_pass(B, nl)
+                if n_m0 != 0:
+                    for el in range(nl):
+                        if B[Q_LIVE, el] == 0.0 or B[Q_M, el] != 0.0:
+                            continue
+                        p = (j + 1) // np.int64(B[Q_NS, el]) - 1
                         e = np.int64(B[Q_SYS, el])
-                        _retire(B, el, e, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e], dynamic)
-                        B[Q_W0, el] = B[Q_WA, el]
-                        B[Q_WW, el] = 0.0
-                nl = _compact(B, TB, nl, n_max)
+                        # the velocity the forces felt (newmark.output_t; over the step's last part after a located
+                        # contact change); Newmark's own after a split step (O_HL 0)
+                        wh = B[R_K + K.K_VC, el] * B[O_HL, el]
+                        for i in range(K.NDOF):
+                            poincare[e, p, i] = B[R_S + i, el]
+                        for i in range(K.NDOF, K.NSTATE):
+                            poincare[e, p, i] = B[R_S + i, el] - wh * (
+                                B[R_S + K.NDOF + i, el] - B[R_OLD + K.NDOF + i, el]
+                            )
+                        poincare[e, p, K.PC_DELTA] = B[O_DELTA, el]
+                        poincare[e, p, K.PC_BD] = B[O_BD, el]
+                        poincare[e, p, K.PC_PSI] = K.psi_t(B[O_SP, el], B[O_CP, el], C[e], dynamic)
+                        poincare[e, p, K.PC_FORCE] = B[O_F, el]
+                if mixed and (j + 1) % n_periods == 0:  # lanes at their last step: retired, then held at their omega
+                    for el in range(nl):
+                        if B[Q_LIVE, el] != 0.0 and j + 1 == n_periods * np.int64(B[Q_NS, el]):
+                            e = np.int64(B[Q_SYS, el])
+                            _retire(B, el, e, r_s, X, A, stats, elapsed, B[Q_EL, el], C[e], dynamic)
+                            B[Q_W0, el] = B[Q_WA, el]
+                            B[Q_WW, el] = 0.0
+                    nc = _compact(B, TB, nl, n_max)
+                    if nc != nl:
+                        nl = nc
+                        j_next = j + 1
+                        break
+            j1 = j_next
         for el in range(nl):
             if B[Q_LIVE, el] != 0.0:
                 e = np.int64(B[Q_SYS, el])
