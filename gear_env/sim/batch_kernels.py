@@ -38,8 +38,8 @@ of PAD)."""
 PAD = 8
 """A block's lane count is padded to a multiple of PAD with copies of its last system (never live): LLVM runs the lane
 loops 8 doubles at a time (AVX-512, or AVX2 unrolled twice) and the rest in a scalar epilogue, so a block of 4 or
-12 lanes padded only to 4 cost more than one of 8 or 16 (4 systems: 2.1x the time of the same 4 padded to 8, on the
-2-core EPYC; ``benchmarks/lane_groups.py --pad``)."""
+12 lanes padded only to 4 cost more than one of 8 or 16 (a vector env of 4 ran 1.65x the env-steps/s padded to 8,
+of 12 1.55x: ``benchmarks/ab_compare.py --only env-vec-4 env-vec-12``, docs/BENCHMARKS.md)."""
 N_K = K.N_K  # length of kernels.step_consts
 # rows of the block buffer: state (q, v, a), Newton guess, their copies from before the step,
 # step constants, then the rest
