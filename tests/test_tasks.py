@@ -99,16 +99,32 @@ def test_demand_plant_is_simulated():
     assert np.array_equal(env._core.C[0], want.consts)
 
 
-def test_duty_cycle_switches_the_load():
+@pytest.mark.parametrize("env_id", ["GearSpeedDemand-v0", "GearSpeedDemandHard-v0"])
+def test_duty_cycle_switches_the_load(env_id):
+    """At every step the row simulates its episode's pair at that step's load (and wear): the constants, the static
+    reference and the stable omega that the environment keeps per row and level (a level it returns to is not
+    derived again) are those of a pair made fresh, also in the next episode (another pair: nothing carried over)."""
+    from gear_env.sim import kernels as K
+    from gear_env.sim.linear import stability_frequency
+
     cfg = dict(SHORT, max_steps=12, duty_cycle={"levels": [1.0, 0.5], "segment_steps": [2, 3]})
-    env = gym.make("GearSpeedDemand-v0", **cfg).unwrapped
-    env.reset(seed=2)
-    lf = env.episode.load_factor
-    assert set(np.unique(lf)) <= {1.0, 0.5} and len(np.unique(lf)) == 2
-    for t in range(12):
-        env.step(np.array([0.0], np.float32))
-        want = env.episode.params_at(t).consts
-        assert np.array_equal(env._core.C[0], want), t
+    if env_id.startswith("GearSpeedDemandHard"):
+        cfg["wear"] = {"factors": [0.5, 2.0], "at_step": [4, 8]}
+    env = gym.make(env_id, **cfg).unwrapped
+    core = env._core
+    for seed in (2, 3):
+        env.reset(seed=seed)
+        lf = env.episode.load_factor
+        assert set(np.unique(lf)) <= {1.0, 0.5} and len(np.unique(lf)) == 2
+        for t in range(12):
+            env.step(np.array([0.0], np.float32))
+            p = env.episode.params_at(t)
+            assert np.array_equal(core.C[0], p.consts), (seed, t)
+            x0 = np.zeros(K.NSTATE)
+            K.static_equilibrium(K.readonly(np.array(p.consts)), core.code, 0.0, x0)
+            assert core.tr_ref[0] == np.sqrt(max(0.5 * float(np.sum(x0[:4] ** 2)), 1e-300)), (seed, t)
+            assert core.w_stab[0] == stability_frequency(p) and core.beta[0] == p.newmark_beta
+        assert 2 <= len(core._plants[0]) <= 4  # one entry per level visited, dropped at the next reset
 
 
 def test_delivered_throughput_and_cost():
