@@ -648,6 +648,8 @@ class GearSpeedCore:
         duty cycle that returns to a level it had costs no new ``GearParams`` (:meth:`_apply_duty`)."""
         plant = None if level is None else self._plants[r].get(level)
         if plant is None:
+            if p is None:  # only _apply_duty passes None, for a level it found kept
+                raise ValueError(f"row {r}: no pair given and none kept for level {level}")
             refuse_extensions(p, "the environment's plant")
             if len(p.consts) != self.C.shape[1]:
                 raise ValueError(
