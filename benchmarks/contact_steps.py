@@ -3,6 +3,7 @@ error of Fox-Goodwin's Newmark steps, against fixed 64 steps, on period-1 orbits
 
     python benchmarks/contact_steps.py             # the three sets below, about 4 minutes on 2 cores
     python benchmarks/contact_steps.py --sets fresh family
+    python benchmarks/contact_steps.py --by-class  # per class of contact loss: where the correction buys accuracy
 
 Sets (both backlash models, period-1 orbits only: the reference's last two Poincare points agree to 1e-5):
 
@@ -108,10 +109,91 @@ def line(name: str, e64, er, ns, evc, erv, nsv, eloc, nloc, ecor, ecr, ncr) -> s
     )
 
 
+CLASS_COLUMNS = (
+    ("fox-goodwin-vc", 64),
+    ("fox-goodwin-vc", 72),
+    ("corrected", 32),
+    ("corrected", 48),
+    ("corrected", 64),
+)
+"""``--by-class``: the schemes and step counts measured on every orbit (kinks as they fall, or corrected)."""
+CLASSES = ((-1.0, 0.2), (0.2, 0.5), (0.5, 1.0))
+"""``--by-class``: the classes of contact loss (time out of drive-side contact at 64 steps of ``fox-goodwin-vc``)."""
+
+
+def class_errors(params, cases) -> tuple[np.ndarray, np.ndarray]:
+    """Per orbit: its contact loss at 64 steps of ``fox-goodwin-vc`` and its error at each of :data:`CLASS_COLUMNS`
+    (orbits x columns)."""
+    from gear_env import GearSimulator
+
+    vc = params.replace(newmark_beta=1.0 / 12.0, velocity_correction=True)
+    sep, err = [], []
+    for model, w, x0, ref in cases:
+        row = []
+        for scheme, n in CLASS_COLUMNS:
+            if scheme == "corrected":
+                row.append(located(vc, model, w, x0, ref, n, corrected=True)[0])
+                continue
+            iv = GearSimulator(vc, model, n, w, x0).advance(10)
+            if n == 64:
+                sep.append(iv.separation_fraction)
+            row.append(float(np.max(np.abs(iv.poincare[:, :10] - ref))))
+        err.append(row)
+    return np.array(sep), np.array(err).reshape(-1, len(CLASS_COLUMNS))
+
+
+def class_lines(name: str, sep: np.ndarray, err: np.ndarray) -> list[str]:
+    """Rows of the ``--by-class`` table: per class of contact loss, p95 / max [b0] and the orbits above 1e-3."""
+    out = []
+    for lo, hi in CLASSES:
+        m = (sep > lo) & (sep <= hi)
+        if not m.any():
+            continue
+        cells = " | ".join(
+            f"{np.percentile(err[m, i], 95):.1e} / {err[m, i].max():.1e}, {(err[m, i] > 1e-3).sum()}"
+            for i in range(len(CLASS_COLUMNS))
+        )
+        out.append(f"| {name} | {max(lo, 0.0):g}-{hi:g} | {m.sum()} | {cells} |")
+    return out
+
+
+def by_class(sets: list[str]) -> int:
+    """``--by-class``: the error of each scheme and count of :data:`CLASS_COLUMNS` per class of contact loss: where
+    the kink correction and the step count buy accuracy, and where they do not."""
+    from gear_env import GearParams
+    from gear_env.envs.tasks import PlantFamily
+
+    head = " | ".join(f"{s}, {n}: p95 / max, > 1e-3" for s, n in CLASS_COLUMNS)
+    print(f"| orbit set | contact loss | orbits | {head} |")
+    print("|---|---|---:|" + "---:|" * len(CLASS_COLUMNS))
+    base = GearParams()
+    for name in sets:
+        if name in ("tuning", "fresh"):
+            start = 0.30 if name == "tuning" else 0.305
+            sep, err = class_errors(base, orbits(base, np.round(np.arange(start, 3.0 + 1e-9, 0.01), 6)))
+            print("\n".join(class_lines(f"Table 1 pair, {name}", sep, err)), flush=True)
+            continue
+        parts = [class_errors(p, orbits(p, np.round(np.arange(0.307, 2.4, 0.04), 6))) for p in (
+            PlantFamily.plant(base, {"load": load, "e_m1": te}, 1.0) for load, te in FAMILY
+        )]  # fmt: skip
+        sep = np.concatenate([a for a, _ in parts])
+        err = np.concatenate([b for _, b in parts])
+        print("\n".join(class_lines("family, all five", sep, err)), flush=True)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sets", nargs="+", choices=SETS, default=list(SETS), help="orbit sets (default: all three)")
+    ap.add_argument(
+        "--by-class",
+        action="store_true",
+        help="per class of contact loss (up to 0.2, 0.2-0.5, above): p95 / max of fox-goodwin-vc at 64 and 72 steps "
+        "and of corrected steps at 32, 48 and 64 (about 6 minutes on 2 cores)",
+    )
     args = ap.parse_args(argv)
+    if args.by_class:
+        return by_class(args.sets)
     from gear_env import GearParams
     from gear_env.envs.tasks import PlantFamily
 

@@ -333,9 +333,16 @@ def test_lanes_kernel_takes_a_step_count_per_system(model, max_iter):
     # gives alone (the scalar kernel, row by row); both blocks mixed (16 + 3 rows), lanes that finish early, split
     # steps (max_iter=1), a NaN row and an exploding one, and kink-correcting rows (K_LOC) among plain ones; the first
     # block has 6 lanes at 64 steps, which move into 8 columns once the others finish (batch_kernels._compact, then
-    # split steps and the divergence check on moved lanes), the second pattern 10, which do not fit
-    for NS in (np.where(np.arange(19) % 3 == 0, 64, 48), np.where(np.arange(19) % 3 == 0, 48, 64)):
-        NS[16:] = [32, 48, 32]
+    # split steps and the divergence check on moved lanes), the second pattern 10, which do not fit. The last two
+    # patterns take the environments' classes, 32 and 64 (and 16 in the second block): compacted (6 at 64) and not (10)
+    for hi, lo, tail in (
+        (64, 48, [32, 48, 32]),
+        (48, 64, [32, 48, 32]),
+        (64, 32, [64, 32, 16]),
+        (32, 64, [16, 32, 64]),
+    ):
+        NS = np.where(np.arange(19) % 3 == 0, hi, lo)
+        NS[16:] = tail
         _check_step_counts(model, max_iter, NS)
 
 
