@@ -121,6 +121,23 @@ CLASSES = ((-1.0, 0.2), (0.2, 0.5), (0.5, 1.0))
 """``--by-class``: the classes of contact loss (time out of drive-side contact at 64 steps of ``fox-goodwin-vc``)."""
 
 
+def orbit_sets(name: str) -> list[tuple[str, object, np.ndarray]]:
+    """(label, pair, omegas) of orbit set ``name`` (:data:`SETS`): one pair for the Table 1 sets, five for the
+    family."""
+    from gear_env import GearParams
+    from gear_env.envs.tasks import PlantFamily
+
+    base = GearParams()
+    if name in ("tuning", "fresh"):
+        start = 0.30 if name == "tuning" else 0.305
+        return [(f"Table 1 pair, {name}", base, np.round(np.arange(start, 3.0 + 1e-9, 0.01), 6))]
+    omegas = np.round(np.arange(0.307, 2.4, 0.04), 6)
+    return [
+        (f"family: load x{load:g}, e_m1 x{te:g}", PlantFamily.plant(base, {"load": load, "e_m1": te}, 1.0), omegas)
+        for load, te in FAMILY
+    ]
+
+
 def class_errors(params, cases) -> tuple[np.ndarray, np.ndarray]:
     """Per orbit: its contact loss at 64 steps of ``fox-goodwin-vc`` and its error at each of :data:`CLASS_COLUMNS`
     (orbits x columns)."""
@@ -129,15 +146,15 @@ def class_errors(params, cases) -> tuple[np.ndarray, np.ndarray]:
     vc = params.replace(newmark_beta=1.0 / 12.0, velocity_correction=True)
     sep, err = [], []
     for model, w, x0, ref in cases:
+        iv64 = GearSimulator(vc, model, 64, w, x0).advance(10)
+        sep.append(iv64.separation_fraction)
         row = []
         for scheme, n in CLASS_COLUMNS:
             if scheme == "corrected":
                 row.append(located(vc, model, w, x0, ref, n, corrected=True)[0])
-                continue
-            iv = GearSimulator(vc, model, n, w, x0).advance(10)
-            if n == 64:
-                sep.append(iv.separation_fraction)
-            row.append(float(np.max(np.abs(iv.poincare[:, :10] - ref))))
+            else:
+                iv = iv64 if n == 64 else GearSimulator(vc, model, n, w, x0).advance(10)
+                row.append(float(np.max(np.abs(iv.poincare[:, :10] - ref))))
         err.append(row)
     return np.array(sep), np.array(err).reshape(-1, len(CLASS_COLUMNS))
 
@@ -160,25 +177,16 @@ def class_lines(name: str, sep: np.ndarray, err: np.ndarray) -> list[str]:
 def by_class(sets: list[str]) -> int:
     """``--by-class``: the error of each scheme and count of :data:`CLASS_COLUMNS` per class of contact loss: where
     the kink correction and the step count buy accuracy, and where they do not."""
-    from gear_env import GearParams
-    from gear_env.envs.tasks import PlantFamily
-
     head = " | ".join(f"{s}, {n}: p95 / max, > 1e-3" for s, n in CLASS_COLUMNS)
     print(f"| orbit set | contact loss | orbits | {head} |")
     print("|---|---|---:|" + "---:|" * len(CLASS_COLUMNS))
-    base = GearParams()
     for name in sets:
-        if name in ("tuning", "fresh"):
-            start = 0.30 if name == "tuning" else 0.305
-            sep, err = class_errors(base, orbits(base, np.round(np.arange(start, 3.0 + 1e-9, 0.01), 6)))
-            print("\n".join(class_lines(f"Table 1 pair, {name}", sep, err)), flush=True)
-            continue
-        parts = [class_errors(p, orbits(p, np.round(np.arange(0.307, 2.4, 0.04), 6))) for p in (
-            PlantFamily.plant(base, {"load": load, "e_m1": te}, 1.0) for load, te in FAMILY
-        )]  # fmt: skip
+        sets_ = orbit_sets(name)
+        parts = [class_errors(p, orbits(p, omegas)) for _, p, omegas in sets_]
         sep = np.concatenate([a for a, _ in parts])
         err = np.concatenate([b for _, b in parts])
-        print("\n".join(class_lines("family, all five", sep, err)), flush=True)
+        label = "family, all five" if name == "family" else sets_[0][0]
+        print("\n".join(class_lines(label, sep, err)), flush=True)
     return 0
 
 
@@ -189,14 +197,11 @@ def main(argv: list[str] | None = None) -> int:
         "--by-class",
         action="store_true",
         help="per class of contact loss (up to 0.2, 0.2-0.5, above): p95 / max of fox-goodwin-vc at 64 and 72 steps "
-        "and of corrected steps at 32, 48 and 64 (about 6 minutes on 2 cores)",
+        "and of corrected steps at 32, 48 and 64 (about 4 minutes on 2 cores)",
     )
     args = ap.parse_args(argv)
     if args.by_class:
         return by_class(args.sets)
-    from gear_env import GearParams
-    from gear_env.envs.tasks import PlantFamily
-
     print(
         "| orbit set | orbits | 64 steps: p95 / max [b0] | > 1e-3 | rule: p95 / max [b0] | > 1e-3 | rule: mean steps "
         "| fox-goodwin-vc, 64 steps: p95 / max [b0] | > 1e-3 | fox-goodwin-vc, rule: p95 / max [b0] | > 1e-3 "
@@ -205,21 +210,14 @@ def main(argv: list[str] | None = None) -> int:
         "| fox-goodwin-vc, kinks corrected, corrected rule: p95 / max [b0] | > 1e-3 | its mean steps |"
     )
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    base = GearParams()
     for name in args.sets:
-        if name in ("tuning", "fresh"):
-            start = 0.30 if name == "tuning" else 0.305
-            omegas = np.round(np.arange(start, 3.0 + 1e-9, 0.01), 6)
-            print(line(f"Table 1 pair, {name}", *errors(base, orbits(base, omegas))), flush=True)
-            continue
-        omegas = np.round(np.arange(0.307, 2.4, 0.04), 6)
         total = [np.zeros(0)] * 11
-        for load, te in FAMILY:
-            p = PlantFamily.plant(base, {"load": load, "e_m1": te}, 1.0)
+        for label, p, omegas in orbit_sets(name):
             res = errors(p, orbits(p, omegas))
-            print(line(f"family: load x{load:g}, e_m1 x{te:g}", *res), flush=True)
+            print(line(label, *res), flush=True)
             total = [np.concatenate([a, b]) for a, b in zip(total, res)]
-        print(line("family, all five", *total), flush=True)
+        if name == "family":
+            print(line("family, all five", *total), flush=True)
     return 0
 
 

@@ -171,7 +171,7 @@ class GearSpeedCore:
         # the episode scenario of every row (gear_env.envs.tasks.Episode: plant, duty cycle, demand), and the
         # demand and load level of every step of it (tables only when they vary)
         self.episodes: list[Any] = [None] * n
-        self._plants: list[dict[tuple[float, float], tuple]] = [{} for _ in range(n)]  # see _set_plant
+        self._plants: list[dict[tuple[float, float], tuple]] = [{} for _ in range(n)]  # see _apply_duty
         self._scenario = (
             cfg.plant_family is not None or cfg.duty_cycle is not None or cfg.demand == "random" or cfg.wear is not None
         )
@@ -546,10 +546,9 @@ class GearSpeedCore:
                     None if wear is None else wear.copy(),
                 )  # fmt: skip
             changes = load is not None or wear is not None
-            self._plants[r] = {}  # a new episode pair: its levels' derived constants are computed anew
-            self._set_plant(
-                r, self.episodes[r].params_at(0) if changes else p, equilibrium=True, level=self._level(r, 0)
-            )
+            plant = self._derive_plant(self.episodes[r].params_at(0) if changes else p)
+            self._plants[r] = {self._level(r, 0): plant}  # a new episode pair: its levels are derived anew
+            self._set_plant(r, plant, equilibrium=True)
         self.omega[rows] = w_init
         if self._limit_mode:  # the limit starts at the bottom of its band
             self.limit[rows] = ET.action_bounds(cfg)[0]
@@ -640,30 +639,26 @@ class GearSpeedCore:
             )
             o[rows, c["mean_force_level_count"]] = np.minimum(m[:, 1], self._window) / self._window
 
-    def _set_plant(self, r: int, p: GearParams | None, equilibrium: bool = False, level: Any = None) -> None:
-        """Row ``r`` simulates the gear pair ``p`` from now on (the features' static references follow
-        its load); ``equilibrium``: also restart it from the static equilibrium (a new episode). ``level``: the
-        (load, wear) factors that make ``p`` from the row's episode pair: what the pair derives (constants, stable
-        omegas, static equilibrium) is kept per row and level for the episode (:meth:`reset_rows` clears it), so a
-        duty cycle that returns to a level it had costs no new ``GearParams`` (:meth:`_apply_duty`)."""
-        plant = None if level is None else self._plants[r].get(level)
-        if plant is None:
-            if p is None:  # only _apply_duty passes None, for a level it found kept
-                raise ValueError(f"row {r}: no pair given and none kept for level {level}")
-            refuse_extensions(p, "the environment's plant")
-            if len(p.consts) != self.C.shape[1]:
-                raise ValueError(
-                    f"a plant's parameters have {len(p.consts)} constants where the environment's have "
-                    f"{self.C.shape[1]}: every plant of a family must have as many excitation harmonics as the base"
-                )
-            c = np.array(p.consts, float)
-            c[C_LOC] = self._loc
-            x0 = np.zeros(K.NSTATE)
-            K.static_equilibrium(K.readonly(c), self.code, 0.0, x0)
-            tr_ref = math.sqrt(max(0.5 * float(np.sum(x0[:4] ** 2)), 1e-300))
-            plant = (c, float(p.newmark_beta), stability_frequency(p), stability_frequency(p, plain=True), x0, tr_ref)
-            if level is not None:
-                self._plants[r][level] = plant
+    def _derive_plant(self, p: GearParams) -> tuple:
+        """What the gear pair ``p`` gives a row of the environment: (constants with the env's ``C_LOC``, Newmark
+        beta, stable omega, that of the plain step, static equilibrium state, its transmission-error reference).
+        Refuses a pair with extensions or another number of constants than the environment's."""
+        refuse_extensions(p, "the environment's plant")
+        if len(p.consts) != self.C.shape[1]:
+            raise ValueError(
+                f"a plant's parameters have {len(p.consts)} constants where the environment's have "
+                f"{self.C.shape[1]}: every plant of a family must have as many excitation harmonics as the base"
+            )
+        c = np.array(p.consts, float)
+        c[C_LOC] = self._loc
+        x0 = np.zeros(K.NSTATE)
+        K.static_equilibrium(K.readonly(c), self.code, 0.0, x0)
+        tr_ref = math.sqrt(max(0.5 * float(np.sum(x0[:4] ** 2)), 1e-300))
+        return c, float(p.newmark_beta), stability_frequency(p), stability_frequency(p, plain=True), x0, tr_ref
+
+    def _set_plant(self, r: int, plant: tuple, equilibrium: bool = False) -> None:
+        """Row ``r`` simulates the pair derived in ``plant`` (:meth:`_derive_plant`) from now on (the features' static
+        references follow its load); ``equilibrium``: also restart it from the static equilibrium (a new episode)."""
         c, self.beta[r], self.w_stab[r], self.w_plain[r], x0, self.tr_ref[r] = plant
         self.C[r] = c
         self._set_floor(r)
@@ -673,7 +668,7 @@ class GearSpeedCore:
             self.A[r] = 0.0
 
     def _level(self, r: int, t: int) -> tuple[float, float]:
-        """The (load, wear) factors of row ``r`` at step ``t``: the key of its plant then (:meth:`_set_plant`)."""
+        """The (load, wear) factors of row ``r`` at step ``t``: the key of its derived pair then (``_plants``)."""
         return (
             float(self._load[r, t]) if self.config.duty_cycle is not None else 1.0,
             float(self._wear[r, t]) if self.config.wear is not None else 1.0,
@@ -691,9 +686,13 @@ class GearSpeedCore:
                 (cfg.duty_cycle is not None and L[r, t] != L[r, t - 1])
                 or (cfg.wear is not None and Wr[r, t] != Wr[r, t - 1])
             ):
+                # each level's pair is derived once per episode (reset_rows clears them): a duty cycle returns to
+                # its levels several times an episode
                 level = self._level(r, t)
                 plant = self._plants[r].get(level)
-                self._set_plant(r, self.episodes[r].params_at(t) if plant is None else None, level=level)
+                if plant is None:
+                    plant = self._plants[r][level] = self._derive_plant(self.episodes[r].params_at(t))
+                self._set_plant(r, plant)
 
     def _show_limit(self, rows: np.ndarray) -> None:
         """Write the rows' speed limit into the feature the observation gathers (scaled like omega)."""
