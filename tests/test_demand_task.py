@@ -92,3 +92,57 @@ def test_learned_window_plot_draws_fixed_best_beside_the_policy():
     line = next(ln for ln in with_fixed.axes[0].get_lines() if ln.get_label().startswith("fixed-best"))
     assert list(line.get_ydata()) == [1.15, 1.15, 1.15]
     assert not any(lb.startswith("fixed-best") for lb in labels(plot_learned_window([curve])))
+
+
+DEMAND_IDS = ["GearSpeedDemand-v0", "GearSpeedDemand-v1", "GearSpeedDemandLimit-v1", "GearSpeedDemandHard-v1"]
+SHORT = {"max_steps": 5, "periods_per_step": 8, "warmup_periods": 16, "demand_segment_steps": (2, 3)}
+
+
+def _scaled_demand(cfg, value: float) -> float:
+    """The observation's demand entry for a required omega (scaled like omega)."""
+    return float(np.clip(2.0 * (value - cfg.omega_min) / (cfg.omega_max - cfg.omega_min) - 1.0, -1.0, 1.0))
+
+
+@pytest.mark.parametrize("env_id", DEMAND_IDS)
+def test_reset_seed_alone_determines_the_episode_of_a_used_env(env_id):
+    """reset(seed) after a finished episode gives what a fresh env gives, the reset observation's demand (the
+    demand of step 0) included: before the fix it showed the new demand at the step the last episode ended at."""
+    import gymnasium as gym
+
+    used = gym.make(env_id, **SHORT).unwrapped
+    used.reset(seed=101)
+    done = False
+    while not done:
+        _, _, term, trunc, _ = used.step(used.action_space.sample())
+        done = term or trunc
+    fresh = gym.make(env_id, **SHORT).unwrapped
+    obs_u, info_u = used.reset(seed=7)
+    obs_f, info_f = fresh.reset(seed=7)
+    k = list(used.observation_names).index("demand")
+    assert obs_u[k] == pytest.approx(_scaled_demand(used.config, used.episode.demand[0]), abs=1e-6)
+    assert used.episode.demand[0] != used.episode.demand[SHORT["max_steps"]]  # the old bug would show
+    np.testing.assert_array_equal(obs_u, obs_f)
+    assert info_u["demand"] == info_f["demand"] == used.episode.demand[0]
+    for a in (0.3, -0.5, 0.9):
+        out_u, out_f = used.step(np.array([a], np.float32)), fresh.step(np.array([a], np.float32))
+        np.testing.assert_array_equal(out_u[0], out_f[0])
+        assert out_u[1] == out_f[1]
+
+
+def test_vector_autoreset_shows_the_demand_of_step_0():
+    import gymnasium as gym
+
+    venv = gym.make_vec("GearSpeedDemand-v1", num_envs=3, vectorization_mode="vector_entry_point", **SHORT)
+    core = venv.unwrapped._core
+    k = list(core.observation_names).index("demand")
+    obs, _ = venv.reset(seed=3)
+    starts = changed = 0
+    for _ in range(3 * SHORT["max_steps"] + 2):
+        obs, _, term, trunc, _ = venv.step(np.full((3, 1), 0.2, np.float32))
+        fresh = core.steps == 0  # rows whose observation is a reset's (NEXT_STEP autoreset)
+        for r in np.flatnonzero(fresh):
+            assert obs[r, k] == pytest.approx(_scaled_demand(core.config, core._dem[r, 0]), abs=1e-6)
+            starts += 1
+            changed += core._dem[r, 0] != core._dem[r, SHORT["max_steps"]]
+    assert starts >= 6 and changed >= 3  # rows where the old bug would show
+    venv.close()

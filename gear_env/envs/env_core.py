@@ -558,6 +558,9 @@ class GearSpeedCore:
             hold = 2.0 * (w_init - alo) / (ahi - alo) - 1.0
             self._pending[:, rows] = 0.0 if cfg.action_mode == "delta" else hold
         self.hist[rows] = 0.0
+        # a new episode is at step 0 before its warm-up: the reset observation shows the demand of step 0, not of the
+        # step the row's previous episode ended at (reset(seed) alone determines the episode)
+        self.steps[rows] = 0
         self.n_tol[rows] = TOL_N_START  # with `tol`: a fresh episode starts from the same step count
         if self.auto:
             self.n_steps[rows] = AUTO_FIRST_STEPS  # and with "auto"
