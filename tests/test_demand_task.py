@@ -146,3 +146,30 @@ def test_vector_autoreset_shows_the_demand_of_step_0():
             changed += core._dem[r, 0] != core._dem[r, SHORT["max_steps"]]
     assert starts >= 6 and changed >= 3  # rows where the old bug would show
     venv.close()
+
+
+class _FollowDemandReading:
+    """Commands the speed the observation's demand entry shows (a policy that acts on that reading at once)."""
+
+    def __init__(self, k: int) -> None:
+        self.k = k
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        return np.asarray(obs)[:, self.k : self.k + 1].astype(np.float32), state
+
+
+def test_an_evaluation_episode_does_not_depend_on_the_episodes_before_it():
+    """evaluate_policies reuses one env; each episode's return must equal that of the same seed in a fresh env."""
+    import gymnasium as gym
+
+    from gear_env.envs.env_config import task_config
+    from gear_env.evaluation import evaluate_policies, run_episode
+
+    cfg = task_config("GearSpeedDemand-v1", {**SHORT, "action_mode": "target"})
+    probe = gym.make("GearSpeedDemand-v1", **SHORT, action_mode="target").unwrapped
+    pol = _FollowDemandReading(list(probe.observation_names).index("demand"))
+    report = evaluate_policies({"first": pol, "follow": pol}, cfg, episodes=4, seed=40)
+    for name in ("first", "follow"):
+        for k, ep in enumerate(report.episodes[name]):
+            alone = run_episode(gym.make("GearSpeedDemand-v1", **SHORT, action_mode="target"), pol, 40 + k)
+            assert ep.ret == alone.ret, (name, k)
