@@ -1,4 +1,5 @@
-"""GearSpeedDemand-v0's demand band and family: validation, draws inside the band, refusal before training."""
+"""GearSpeedDemand-v0's demand band and family: validation, draws inside the band, refusal before training; every
+task's reset(seed) determines its episode whatever the env ran before (the reset observation's demand)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ import numpy as np
 import pytest
 
 from gear_env.envs.env_config import task_config
-from gear_env.envs.tasks import DEMAND_SETTINGS, PlantFamily, random_demand
+from gear_env.envs.tasks import DEMAND_SETTINGS, TASK_SETTINGS, PlantFamily, random_demand
 
 
 @pytest.mark.parametrize(
@@ -95,7 +96,8 @@ def test_learned_window_plot_draws_fixed_best_beside_the_policy():
 
 
 DEMAND_IDS = ["GearSpeedDemand-v0", "GearSpeedDemand-v1", "GearSpeedDemandLimit-v1", "GearSpeedDemandHard-v1"]
-SHORT = {"max_steps": 5, "periods_per_step": 8, "warmup_periods": 16, "demand_segment_steps": (2, 3)}
+NO_DEMAND = {"max_steps": 5, "periods_per_step": 8, "warmup_periods": 16}
+SHORT = {**NO_DEMAND, "demand_segment_steps": (2, 3)}
 
 
 def _scaled_demand(cfg, value: float) -> float:
@@ -103,30 +105,35 @@ def _scaled_demand(cfg, value: float) -> float:
     return float(np.clip(2.0 * (value - cfg.omega_min) / (cfg.omega_max - cfg.omega_min) - 1.0, -1.0, 1.0))
 
 
-@pytest.mark.parametrize("env_id", DEMAND_IDS)
+@pytest.mark.parametrize("env_id", list(TASK_SETTINGS))
 def test_reset_seed_alone_determines_the_episode_of_a_used_env(env_id):
-    """reset(seed) after a finished episode gives what a fresh env gives, the reset observation's demand (the
-    demand of step 0) included: before the fix it showed the new demand at the step the last episode ended at."""
+    """reset(seed) after a finished episode gives what a fresh env gives (every registered task), the reset
+    observation's demand (the demand of step 0) included: before the fix it showed the new demand at the step the
+    last episode ended at."""
     import gymnasium as gym
 
-    used = gym.make(env_id, **SHORT).unwrapped
+    kw = SHORT if env_id in DEMAND_IDS or "demand" in TASK_SETTINGS[env_id] else NO_DEMAND
+    used = gym.make(env_id, **kw).unwrapped
+    used.action_space.seed(0)
     used.reset(seed=101)
     done = False
     while not done:
         _, _, term, trunc, _ = used.step(used.action_space.sample())
         done = term or trunc
-    fresh = gym.make(env_id, **SHORT).unwrapped
+    fresh = gym.make(env_id, **kw).unwrapped
     obs_u, info_u = used.reset(seed=7)
     obs_f, info_f = fresh.reset(seed=7)
-    k = list(used.observation_names).index("demand")
-    assert obs_u[k] == pytest.approx(_scaled_demand(used.config, used.episode.demand[0]), abs=1e-6)
-    assert used.episode.demand[0] != used.episode.demand[SHORT["max_steps"]]  # the old bug would show
     np.testing.assert_array_equal(obs_u, obs_f)
-    assert info_u["demand"] == info_f["demand"] == used.episode.demand[0]
+    assert info_u == info_f
+    if kw is SHORT:
+        k = list(used.observation_names).index("demand")
+        assert obs_u[k] == pytest.approx(_scaled_demand(used.config, used.episode.demand[0]), abs=1e-6)
+        assert used.episode.demand[0] != used.episode.demand[SHORT["max_steps"]]  # the old bug would show
+        assert info_u["demand"] == used.episode.demand[0]
     for a in (0.3, -0.5, 0.9):
         out_u, out_f = used.step(np.array([a], np.float32)), fresh.step(np.array([a], np.float32))
         np.testing.assert_array_equal(out_u[0], out_f[0])
-        assert out_u[1] == out_f[1]
+        assert out_u[1:] == out_f[1:]  # reward, terminated, truncated, info
 
 
 def test_vector_autoreset_shows_the_demand_of_step_0():
