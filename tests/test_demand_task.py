@@ -95,7 +95,6 @@ def test_learned_window_plot_draws_fixed_best_beside_the_policy():
     assert not any(lb.startswith("fixed-best") for lb in labels(plot_learned_window([curve])))
 
 
-DEMAND_IDS = ["GearSpeedDemand-v0", "GearSpeedDemand-v1", "GearSpeedDemandLimit-v1", "GearSpeedDemandHard-v1"]
 NO_DEMAND = {"max_steps": 5, "periods_per_step": 8, "warmup_periods": 16}
 SHORT = {**NO_DEMAND, "demand_segment_steps": (2, 3)}
 
@@ -112,7 +111,7 @@ def test_reset_seed_alone_determines_the_episode_of_a_used_env(env_id):
     last episode ended at."""
     import gymnasium as gym
 
-    kw = SHORT if env_id in DEMAND_IDS or "demand" in TASK_SETTINGS[env_id] else NO_DEMAND
+    kw = SHORT if "demand" in TASK_SETTINGS[env_id] else NO_DEMAND
     used = gym.make(env_id, **kw).unwrapped
     used.action_space.seed(0)
     used.reset(seed=101)
@@ -134,6 +133,40 @@ def test_reset_seed_alone_determines_the_episode_of_a_used_env(env_id):
         out_u, out_f = used.step(np.array([a], np.float32)), fresh.step(np.array([a], np.float32))
         np.testing.assert_array_equal(out_u[0], out_f[0])
         assert out_u[1:] == out_f[1:]  # reward, terminated, truncated, info
+
+
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+def test_a_fixed_demand_profile_starts_at_step_0_after_a_used_reset(mode):
+    """The bug was not only the Demand ids': any task with a demand profile (here a fixed one on GearSpeed-v2) showed
+    the demand of the previous episode's last step in its reset observation and info, vector autoresets included."""
+    import gymnasium as gym
+
+    kw = {**NO_DEMAND, "demand": [(0, 1.0), (2, 1.0), (3, 1.6)]}  # 1.0 at step 0, 1.6 from step 3 on
+    used, fresh = gym.make("GearSpeed-v2", **kw).unwrapped, gym.make("GearSpeed-v2", **kw).unwrapped
+    k = list(used.observation_names).index("demand")
+    used.reset(seed=1)
+    for _ in range(NO_DEMAND["max_steps"]):
+        used.step(np.array([0.1], np.float32))
+    (obs_u, info_u), (obs_f, info_f) = used.reset(seed=2), fresh.reset(seed=2)
+    np.testing.assert_array_equal(obs_u, obs_f)
+    assert info_u["demand"] == info_f["demand"] == 1.0
+    assert obs_u[k] == pytest.approx(_scaled_demand(used.config, 1.0), abs=1e-6)
+    venv = gym.make_vec("GearSpeed-v2", num_envs=2, vectorization_mode="vector_entry_point", autoreset_mode=mode, **kw)
+    venv.reset(seed=5)
+    seen = 0
+    for _ in range(2 * NO_DEMAND["max_steps"] + 2):
+        obs, _, term, trunc, info = venv.step(np.full((2, 1), 0.1, np.float32))
+        if mode == "SameStep" and (term | trunc).any():  # the reset observation replaces the final one at once
+            r = np.flatnonzero(term | trunc)
+        elif mode == "NextStep":
+            r = np.flatnonzero(venv.unwrapped._core.steps == 0)
+        else:
+            continue
+        assert np.allclose(obs[r, k], _scaled_demand(used.config, 1.0), atol=1e-6)
+        assert np.all(info["demand"][r] == 1.0)
+        seen += len(r)
+    assert seen >= 2
+    venv.close()
 
 
 def test_vector_autoreset_shows_the_demand_of_step_0():
@@ -175,6 +208,7 @@ def test_an_evaluation_episode_does_not_depend_on_the_episodes_before_it():
     cfg = task_config("GearSpeedDemand-v1", {**SHORT, "action_mode": "target"})
     probe = gym.make("GearSpeedDemand-v1", **SHORT, action_mode="target").unwrapped
     pol = _FollowDemandReading(list(probe.observation_names).index("demand"))
+    # the same policy twice: the second one's episodes run on the env the first one has used
     report = evaluate_policies({"first": pol, "follow": pol}, cfg, episodes=4, seed=40)
     for name in ("first", "follow"):
         for k, ep in enumerate(report.episodes[name]):
